@@ -1,0 +1,66 @@
+# wdc: wave-digital compiler and sound runtime.
+# `make` builds bin/wdc; `make demo` installs what is missing, builds,
+# compiles every example netlist and renders it to out/; `make test` runs
+# the test suite; `make bench` prints ns/sample of every example voice.
+
+CC      ?= cc
+CFLAGS  ?= -O2 -g
+CFLAGS  += -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -Wall -Wextra -pedantic -MMD -MP
+LDLIBS  = -llapacke -lsndfile -ldl -lm
+
+GEN_SRCS   = $(filter-out gen/main.c,$(wildcard gen/*.c))
+RT_SRCS    = $(wildcard runtime/*.c)
+TEST_LIB   = $(filter-out tests/test_%.c,$(wildcard tests/*.c))
+TEST_SRCS  = $(wildcard tests/test_*.c)
+
+GEN_OBJS   = $(GEN_SRCS:%.c=build/%.o)
+RT_OBJS    = $(RT_SRCS:%.c=build/%.o)
+TLIB_OBJS  = $(TEST_LIB:%.c=build/%.o)
+TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
+NETLISTS   = $(wildcard netlists/*.wdn)
+
+all: bin/wdc
+
+build/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -Iruntime -Igen -c $< -o $@
+
+build/libwdc.a: $(GEN_OBJS)
+	ar rcs $@ $^
+
+build/libwdrt.a: $(RT_OBJS)
+	ar rcs $@ $^
+
+bin/wdc: build/gen/main.o build/libwdc.a build/libwdrt.a
+	@mkdir -p bin
+	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+
+build/tests/%: build/tests/%.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+deps:
+	sh scripts/install-deps.sh
+
+demo: deps
+	$(MAKE) all
+	sh scripts/demo.sh
+
+test: all $(TEST_BINS)
+	sh tests/run.sh $(TEST_BINS)
+
+bench: all build/bench/bench
+	build/bench/bench $(NETLISTS)
+
+build/bench/bench: build/bench/bench.o build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+
+format:
+	clang-format -i gen/*.c gen/*.h runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c
+
+clean:
+	rm -rf build bin out
+
+.PHONY: all deps demo test bench format clean
+.PRECIOUS: build/tests/%.o build/%.o
+
+-include $(shell find build -name '*.d' 2>/dev/null)

@@ -1,0 +1,896 @@
+/* elab.c: syntax lines -> Circuit.
+ *
+ * Includes are expanded and blocks instantiated; every element is lowered
+ * to the primitive kinds R, C, L, V, I in SI units.  Mechanical elements
+ * follow the mobility analogy (velocity = voltage, force = current): a
+ * mass is a capacitor to ground (C = m), a spring an inductor (L = 1/k), a
+ * damper a resistor (R = 1/c), a force a current source, a velocity a
+ * voltage source.  A pot is two resistors, "P.aw" and "P.wb". */
+#include <ctype.h>
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gen.h"
+
+typedef struct BlockDef {
+    const char *name;
+    Line *head;   /* the .block line */
+    Vec lines;    /* Line* of its body */
+} BlockDef;
+
+/* One level of block instantiation. */
+typedef struct Scope {
+    const char *prefix;   /* "" at top level, "inst." inside */
+    BlockDef *def;
+    int *formal_node;     /* actual node of each formal node */
+    Expr **bparam;        /* actual value of each block param (kv of head) */
+    struct Scope *parent;
+    int depth;
+} Scope;
+
+typedef struct Elab {
+    Circuit *c;
+    Vec nodes;     /* const char* */
+    Vec elems;     /* Elem* */
+    Vec params;    /* Param* */
+    Vec inputs;    /* const char* */
+    Vec outs;      /* Probe* */
+    Vec ics;       /* IcSpec* */
+    Vec models;    /* Line* */
+    Vec blocks;    /* BlockDef* */
+    Vec top;       /* Line* of the top level, includes expanded */
+    Vec names;     /* Elem names' first positions, parallel to elems */
+    Vec incstack;  /* const char* resolved paths being included */
+    int *node_deg;
+    bool have_voice, have_domain, have_rate;
+} Elab;
+
+/* ---- names ---- */
+
+static bool is_ground(const char *s) { return !strcmp(s, "0") || !strcasecmp(s, "gnd"); }
+
+static int find_str(Vec *v, const char *s) {
+    for (int i = 0; i < v->len; i++)
+        if (!strcmp(v->data[i], s))
+            return i;
+    return -1;
+}
+
+static int find_param(Elab *E, const char *s) {
+    for (int i = 0; i < E->params.len; i++)
+        if (!strcmp(((Param *)E->params.data[i])->name, s))
+            return i;
+    return -1;
+}
+
+static Elem *find_elem(Elab *E, const char *s) {
+    for (int i = 0; i < E->elems.len; i++)
+        if (!strcmp(((Elem *)E->elems.data[i])->name, s))
+            return E->elems.data[i];
+    return NULL;
+}
+
+static bool is_c_ident(const char *s) {
+    if (!isalpha((unsigned char)*s) && *s != '_')
+        return false;
+    for (; *s; s++)
+        if (!isalnum((unsigned char)*s) && *s != '_')
+            return false;
+    return true;
+}
+
+/* Node index of a name in a scope, creating it if `create`. */
+static int node_of(Elab *E, Scope *S, const char *name, SrcPos pos, bool create) {
+    if (is_ground(name))
+        return 0;
+    if (S->def) {
+        Line *h = S->def->head;
+        for (int i = 0; i < h->nargs; i++)
+            if (!strcmp(h->args[i].name, name))
+                return S->formal_node[i];
+    }
+    const char *full = S->prefix[0] ? format("%s%s", S->prefix, name) : name;
+    int i = find_str(&E->nodes, full);
+    if (i >= 0)
+        return i;
+    if (!create)
+        error_at(pos, "unknown node '%s'", full);
+    vec_push(&E->nodes, (void *)arena_strdup(full));
+    return E->nodes.len - 1;
+}
+
+/* ---- expressions ---- */
+
+static Expr *resolve(Elab *E, Scope *S, Expr *e);
+
+static Expr *lookup_name(Elab *E, Scope *S, const char *name, SrcPos pos) {
+    for (Scope *s = S; s && s->def; s = NULL) {
+        Line *h = s->def->head;
+        for (int i = 0; i < h->nkv; i++)
+            if (!strcmp(h->kv[i].key, name))
+                return s->bparam[i];
+    }
+    int p = find_param(E, name);
+    if (p < 0) {
+        if (find_str(&E->inputs, name) >= 0)
+            error_at(pos, "'%s' is an audio input; only params may appear in values", name);
+        error_at(pos, "unknown param '%s'", name);
+    }
+    Expr *e = arena_alloc(sizeof(Expr));
+    e->kind = EX_PARAM;
+    e->param = p;
+    e->pos = pos;
+    e->name = name;
+    return e;
+}
+
+static Expr *resolve(Elab *E, Scope *S, Expr *e) {
+    if (!e)
+        return NULL;
+    if (e->kind == EX_NAME)
+        return lookup_name(E, S, e->name, e->pos);
+    if (e->kind == EX_NUM || e->kind == EX_PARAM)
+        return e;
+    Expr *r = arena_alloc(sizeof(Expr));
+    *r = *e;
+    r->a = resolve(E, S, e->a);
+    r->b = resolve(E, S, e->b);
+    return r;
+}
+
+static Expr *value_expr(Elab *E, Scope *S, const Value *v, const char *what) {
+    if (v->kind == VAL_EXPR)
+        return resolve(E, S, v->expr);
+    if (v->kind == VAL_NAME)
+        return lookup_name(E, S, v->name, v->pos);
+    error_at(v->pos, "expected a number, {expression} or param name for %s", what);
+}
+
+static double fn_eval(FnKind fn, double a, double b) {
+    switch (fn) {
+    case FN_SQRT: return sqrt(a);
+    case FN_EXP: return exp(a);
+    case FN_LOG: return log(a);
+    case FN_LOG10: return log10(a);
+    case FN_SIN: return sin(a);
+    case FN_COS: return cos(a);
+    case FN_TAN: return tan(a);
+    case FN_ABS: return fabs(a);
+    case FN_POW: return pow(a, b);
+    case FN_MIN: return a < b ? a : b;
+    case FN_MAX: return a > b ? a : b;
+    case FN_POTLIN: return a < 0 ? 0 : a > 1 ? 1 : a;
+    case FN_POTLOG: a = a < 0 ? 0 : a > 1 ? 1 : a; return (pow(10, 2 * a) - 1) / 99;
+    case FN_COUNT: break;
+    }
+    unreachable();
+}
+
+double expr_eval(const Expr *e, const double *p) {
+    switch (e->kind) {
+    case EX_NUM: return e->num;
+    case EX_PARAM: return p[e->param];
+    case EX_NAME: die("unresolved name '%s'", e->name);
+    case EX_NEG: return -expr_eval(e->a, p);
+    case EX_ADD: return expr_eval(e->a, p) + expr_eval(e->b, p);
+    case EX_SUB: return expr_eval(e->a, p) - expr_eval(e->b, p);
+    case EX_MUL: return expr_eval(e->a, p) * expr_eval(e->b, p);
+    case EX_DIV: return expr_eval(e->a, p) / expr_eval(e->b, p);
+    case EX_POW: return pow(expr_eval(e->a, p), expr_eval(e->b, p));
+    case EX_CALL: return fn_eval(e->fn, expr_eval(e->a, p), e->b ? expr_eval(e->b, p) : 0);
+    }
+    unreachable();
+}
+
+uint64_t expr_params(const Expr *e) {
+    if (!e)
+        return 0;
+    if (e->kind == EX_PARAM)
+        return e->param < 64 ? (uint64_t)1 << e->param : ~(uint64_t)0;
+    return expr_params(e->a) | expr_params(e->b);
+}
+
+bool expr_is_const(const Expr *e) { return expr_params(e) == 0; }
+
+double *circuit_defaults(const Circuit *c) {
+    double *p = arena_alloc(sizeof(double) * (size_t)(c->nparams + 1));
+    for (int i = 0; i < c->nparams; i++)
+        p[i] = c->params[i].def;
+    return p;
+}
+
+double elem_value(const Circuit *c, const Elem *e, const double *params) {
+    (void)c;
+    return e->val ? expr_eval(e->val, params) : 0;
+}
+
+double elem_drive(const Circuit *c, const Elem *e, const double *params) {
+    (void)c;
+    return e->drive ? expr_eval(e->drive, params) : 0;
+}
+
+/* ---- includes and blocks ---- */
+
+static void collect(Elab *E, Program *prog, BlockDef *into);
+
+static const char *resolve_path(SrcFile *from, const char *name) {
+    if (name[0] == '/')
+        return name;
+    const char *slash = strrchr(from->path, '/');
+    if (slash) {
+        const char *p = format("%.*s/%s", (int)(slash - from->path), from->path, name);
+        FILE *f = fopen(p, "r");
+        if (f) {
+            fclose(f);
+            return p;
+        }
+    }
+    return name;
+}
+
+static void include(Elab *E, Line *l, BlockDef *into) {
+    if (l->nargs != 1 || (l->args[0].kind != VAL_STRING && l->args[0].kind != VAL_NAME))
+        error_at(l->pos, "expected a file name after .include");
+    const char *path = resolve_path(l->pos.file, l->args[0].name);
+    char real[PATH_MAX];
+    const char *key = realpath(path, real) ? arena_strdup(real) : path;
+    if (find_str(&E->incstack, key) >= 0)
+        error_at(l->args[0].pos, "include cycle: '%s' includes itself", l->args[0].name);
+    if (E->incstack.len > 32)
+        error_at(l->args[0].pos, "includes nested too deeply");
+    size_t len;
+    char *text = read_file(path, &len);
+    if (!text)
+        error_at(l->args[0].pos, "cannot read included file '%s'", l->args[0].name);
+    if (strlen(text) != len)
+        error_at(l->args[0].pos, "included file '%s' contains a NUL byte", l->args[0].name);
+    SrcFile *f = srcfile_new(path, text);
+    f->includer = l->pos.file;
+    f->inc_line = l->pos.line;
+    f->inc_col = l->pos.col;
+    vec_push(&E->incstack, (void *)key);
+    E->c->hash = (E->c->hash ^ (uint32_t)len) * 16777619u;
+    for (const char *p = text; *p; p++)
+        E->c->hash = (E->c->hash ^ (unsigned char)*p) * 16777619u;
+    collect(E, parse_file(f), into);
+    E->incstack.len--;
+}
+
+/* Sorts lines into the top level or the block being defined. */
+static void collect(Elab *E, Program *prog, BlockDef *into) {
+    BlockDef *cur = into;
+    for (int i = 0; i < prog->nlines; i++) {
+        Line *l = &prog->lines[i];
+        if (!strcmp(l->head, ".include")) {
+            include(E, l, cur);
+        } else if (!strcmp(l->head, ".block")) {
+            if (cur)
+                error_at(l->pos, "'.block' inside the definition of block '%s' (blocks do not nest)",
+                         cur->name);
+            for (int j = 0; j < E->blocks.len; j++)
+                if (!strcmp(((BlockDef *)E->blocks.data[j])->name, l->name))
+                    error_at(l->namepos, "duplicate block name '%s'", l->name);
+            cur = arena_alloc(sizeof(BlockDef));
+            cur->name = l->name;
+            cur->head = l;
+            vec_push(&E->blocks, cur);
+        } else if (!strcmp(l->head, ".endblock") || !strcmp(l->head, ".ends")) {
+            if (!cur || cur == into)
+                error_at(l->pos, "'%s' without a matching '.block'", l->head);
+            cur = into;
+        } else if (cur) {
+            if (l->head[0] == '.' && strcmp(l->head, ".ic") && strcmp(l->head, ".end"))
+                error_at(l->pos, "directive '%s' is not allowed inside a block", l->head);
+            vec_push(&cur->lines, l);
+        } else {
+            vec_push(&E->top, l);
+        }
+    }
+    if (cur != into)
+        error_at(cur->head->pos, "block '%s' has no '.endblock'", cur->name);
+}
+
+/* ---- directives ---- */
+
+static void dir_param(Elab *E, Line *l) {
+    if (!is_c_ident(l->name))
+        error_at(l->namepos, "param name '%s' is not an identifier", l->name);
+    if (find_param(E, l->name) >= 0)
+        error_at(l->namepos, "duplicate param '%s'", l->name);
+    if (find_str(&E->inputs, l->name) >= 0)
+        error_at(l->namepos, "'%s' is already an input", l->name);
+    Param *p = arena_alloc(sizeof(Param));
+    p->name = l->name;
+    p->pos = l->namepos;
+    p->unit = "";
+    p->min = -INFINITY;
+    p->max = INFINITY;
+    const Value *v = &l->args[0];
+    if (v->kind != VAL_EXPR || !expr_is_const(v->expr) || v->expr->kind == EX_NAME)
+        error_at(v->pos, "the default of param '%s' must be a number", l->name);
+    Expr *d = resolve(E, &(Scope){.prefix = ""}, v->expr);
+    p->def = expr_eval(d, NULL);
+    for (int i = 0; i < l->nkv; i++) {
+        KeyVal *k = &l->kv[i];
+        if (!strcmp(k->key, "unit")) {
+            if (k->val.kind == VAL_LIST) {
+                const Token *a = &k->val.toks[0], *b = &k->val.toks[k->val.ntoks - 1];
+                p->unit = arena_strndup(a->text, (size_t)(b->text + b->len - a->text));
+            } else if (k->val.kind == VAL_NAME || k->val.kind == VAL_STRING) {
+                p->unit = k->val.name;
+            } else {
+                error_at(k->val.pos, "unit= takes a word, such as unit=Hz");
+            }
+            for (const char *q = p->unit; *q; q++)
+                if (*q == '"' || *q == '\\' || *q == ' ')
+                    error_at(k->val.pos, "unit= may not contain quotes, spaces or backslashes");
+            continue;
+        }
+        if (strcmp(k->key, "min") && strcmp(k->key, "max"))
+            error_at(k->pos, "unknown key '%s' for .param (expected min=, max= or unit=)", k->key);
+        if (k->val.kind != VAL_EXPR || !expr_is_const(k->val.expr))
+            error_at(k->val.pos, "%s= of param '%s' must be a number", k->key, l->name);
+        double x = expr_eval(resolve(E, &(Scope){.prefix = ""}, k->val.expr), NULL);
+        if (!strcmp(k->key, "min"))
+            p->min = x;
+        else
+            p->max = x;
+    }
+    if (!(p->min <= p->max))
+        error_at(l->pos, "param '%s' has min greater than max", l->name);
+    if (p->def < p->min || p->def > p->max)
+        error_at(v->pos, "default %g of param '%s' lies outside [%g, %g]", p->def, l->name, p->min,
+                 p->max);
+    vec_push(&E->params, p);
+}
+
+static void dir_simple(Elab *E, Line *l) {
+    Circuit *c = E->c;
+    const char *d = l->head;
+    if (!strcmp(d, ".voice")) {
+        if (E->have_voice)
+            error_at(l->pos, "second .voice line");
+        if (!is_c_ident(l->args[0].name))
+            error_at(l->args[0].pos, "voice name '%s' is not a C identifier", l->args[0].name);
+        c->name = l->args[0].name;
+        E->have_voice = true;
+    } else if (!strcmp(d, ".domain")) {
+        const char *s = l->args[0].name;
+        if (!strcmp(s, "electrical"))
+            c->domain = DOM_ELECTRICAL;
+        else if (!strcmp(s, "mechanical"))
+            c->domain = DOM_MECHANICAL;
+        else if (!strcmp(s, "acoustic"))
+            c->domain = DOM_ACOUSTIC;
+        else
+            error_at(l->args[0].pos, "unknown domain '%s' (expected electrical, mechanical or acoustic)", s);
+        if (E->have_domain)
+            error_at(l->pos, "second .domain line");
+        E->have_domain = true;
+    } else if (!strcmp(d, ".rate")) {
+        const Value *v = &l->args[0];
+        if (v->kind != VAL_EXPR || !expr_is_const(v->expr))
+            error_at(v->pos, "the sample rate must be a number");
+        c->rate = expr_eval(resolve(E, &(Scope){.prefix = ""}, v->expr), NULL);
+        if (!(c->rate >= 1 && c->rate <= 1e7))
+            error_at(v->pos, "sample rate %g Hz is out of range (1 Hz to 10 MHz)", c->rate);
+        if (E->have_rate)
+            error_at(l->pos, "second .rate line");
+        E->have_rate = true;
+    } else if (!strcmp(d, ".input")) {
+        for (int i = 0; i < l->nargs; i++) {
+            const char *s = l->args[i].name;
+            if (!is_c_ident(s))
+                error_at(l->args[i].pos, "input name '%s' is not an identifier", s);
+            if (find_str(&E->inputs, s) >= 0)
+                error_at(l->args[i].pos, "duplicate input '%s'", s);
+            vec_push(&E->inputs, (void *)s);
+        }
+    } else if (!strcmp(d, ".model")) {
+        for (int i = 0; i < E->models.len; i++)
+            if (!strcmp(((Line *)E->models.data[i])->name, l->name))
+                error_at(l->namepos, "duplicate model '%s'", l->name);
+        const char *k = l->args[0].name;
+        int kind = block_by_keyword(k, (int)strlen(k));
+        if (kind < 0 && strlen(k) == 1)
+            kind = block_by_letter(k[0]);
+        if (kind < 0 && !strcasecmp(k, "diode"))
+            kind = BK_D;
+        if (kind < 0 || kind == BK_USE)
+            error_at(l->args[0].pos, "unknown model kind '%s'", k);
+        for (int i = 0; i < l->nkv; i++)
+            if (!block_has_key(kind, l->kv[i].key))
+                error_at(l->kv[i].pos, "unknown key '%s' for a %s model", l->kv[i].key,
+                         block_desc[kind].desc);
+        l->kind = kind;
+        vec_push(&E->models, l);
+    }
+}
+
+/* ---- elements ---- */
+
+static KeyVal *key(Line *l, const char *k) {
+    for (int i = 0; i < l->nkv; i++)
+        if (!strcmp(l->kv[i].key, k))
+            return &l->kv[i];
+    return NULL;
+}
+
+static Elem *add_elem(Elab *E, Scope *S, Line *l, ElemKind k, const char *suffix, int n0, int n1) {
+    const char *name = format("%s%s%s", S->prefix, l->name, suffix);
+    Elem *prev = find_elem(E, name);
+    if (prev) {
+        SrcPos p = l->namepos;
+        if (S->def)
+            error_at(p, "duplicate element name '%s' (in an instance of block '%s')", name, S->def->name);
+        error_at(p, "duplicate element name '%s'", name);
+    }
+    Elem *e = arena_alloc(sizeof(Elem));
+    e->kind = k;
+    e->name = name;
+    e->n[0] = n0;
+    e->n[1] = n1;
+    e->input = -1;
+    e->pos = l->namepos;
+    e->user_kind = l->kind;
+    vec_push(&E->elems, e);
+    return e;
+}
+
+static Expr *need_key(Elab *E, Scope *S, Line *l, const char *k) {
+    KeyVal *kv = key(l, k);
+    if (!kv)
+        error_at(l->namepos, "%s '%s' needs %s=", block_desc[l->kind].desc, l->name, k);
+    return value_expr(E, S, &kv->val, k);
+}
+
+static void set_drive(Elab *E, Scope *S, Elem *e, const Value *v) {
+    if (v->kind == VAL_NAME) {
+        int in = find_str(&E->inputs, v->name);
+        if (in >= 0) {
+            e->input = in;
+            return;
+        }
+        if (find_param(E, v->name) < 0 && !(S->def && key(S->def->head, v->name)))
+            error_at(v->pos, "unknown input or param '%s' (declare inputs with .input)", v->name);
+    }
+    e->drive = value_expr(E, S, v, "the drive");
+}
+
+static Expr *div1(Expr *x) { return expr_bin(EX_DIV, expr_num(1, x->pos), x); }
+
+static void check_keys(Line *l) {
+    for (int i = 0; i < l->nkv; i++)
+        if (!block_has_key(l->kind, l->kv[i].key))
+            error_at(l->kv[i].pos, "unknown key '%s' for %s '%s'", l->kv[i].key,
+                     block_desc[l->kind].desc, l->name);
+}
+
+static void instantiate(Elab *E, Scope *S, Line *l);
+
+static void element(Elab *E, Scope *S, Line *l) {
+    const BlockDesc *d = &block_desc[l->kind];
+    if (l->kind == BK_USE) {
+        instantiate(E, S, l);
+        return;
+    }
+    check_keys(l);
+    int nn = d->nnodes;
+    int node[4] = {0};
+    for (int i = 0; i < nn && i < 4; i++)
+        node[i] = node_of(E, S, l->args[i].name, l->args[i].pos, true);
+    if (l->kind == BK_D) {
+        const Value *m = &l->args[2];
+        int found = -1;
+        for (int i = 0; i < E->models.len; i++)
+            if (!strcmp(((Line *)E->models.data[i])->name, m->name ? m->name : ""))
+                found = i;
+        if (m->kind != VAL_NAME || found < 0)
+            error_at(m->pos, "unknown model '%s'", m->name ? m->name : "");
+        if (((Line *)E->models.data[found])->kind != BK_D)
+            error_at(m->pos, "model '%s' is not a diode model", m->name);
+    }
+    if (!d->ready)
+        error_at(l->headpos, "%s '%s' is not supported yet", d->desc, l->name);
+    const Value *arg = nn < l->nargs ? &l->args[nn] : NULL;
+    Elem *e;
+    switch (l->kind) {
+    case BK_R: case BK_C: case BK_L: {
+        ElemKind k = l->kind == BK_R ? E_R : l->kind == BK_C ? E_C : E_L;
+        e = add_elem(E, S, l, k, "", node[0], node[1]);
+        const char *kn = l->kind == BK_R ? "R" : l->kind == BK_C ? "C" : "L";
+        if (arg && key(l, kn))
+            error_at(key(l, kn)->pos, "value of '%s' given twice", l->name);
+        e->val = arg ? value_expr(E, S, arg, "the value") : need_key(E, S, l, kn);
+        KeyVal *ic = key(l, "IC") ? key(l, "IC") : key(l, "ic");
+        if (ic)
+            e->ic = value_expr(E, S, &ic->val, "IC");
+        break;
+    }
+    case BK_V: case BK_I: case BK_FORCE: case BK_VELOCITY: {
+        bool isv = l->kind == BK_V || l->kind == BK_VELOCITY;
+        /* a force on x from y injects current into x: it flows y -> x */
+        bool rev = l->kind == BK_FORCE;
+        e = add_elem(E, S, l, isv ? E_V : E_I, "", node[rev], node[!rev]);
+        set_drive(E, S, e, arg);
+        if (key(l, "R"))
+            e->val = value_expr(E, S, &key(l, "R")->val, "R");
+        break;
+    }
+    case BK_MASS:
+        e = add_elem(E, S, l, E_C, "", node[0], 0);
+        e->val = need_key(E, S, l, "m");
+        break;
+    case BK_SPRING:
+        e = add_elem(E, S, l, E_L, "", node[0], node[1]);
+        e->val = div1(need_key(E, S, l, "k"));
+        break;
+    case BK_DAMPER:
+        e = add_elem(E, S, l, E_R, "", node[0], node[1]);
+        e->val = div1(need_key(E, S, l, "c"));
+        break;
+    case BK_POT: {
+        Expr *R = need_key(E, S, l, "R"), *pos = need_key(E, S, l, "pos");
+        KeyVal *tk = key(l, "taper");
+        FnKind taper = FN_POTLIN;
+        if (tk) {
+            const char *t = tk->val.kind == VAL_NAME ? tk->val.name : "";
+            if (!strcmp(t, "log"))
+                taper = FN_POTLOG;
+            else if (strcmp(t, "lin"))
+                error_at(tk->val.pos, "taper= takes lin or log");
+        }
+        Expr *t = expr_call(taper, pos, NULL);
+        Expr *floor = expr_num(1e-6, l->pos);
+        Expr *one = expr_num(1, l->pos);
+        if (node[0] != node[1]) {
+            e = add_elem(E, S, l, E_R, ".aw", node[0], node[1]);
+            e->val = expr_bin(EX_MUL, R, expr_call(FN_MAX, expr_bin(EX_SUB, one, t), floor));
+        }
+        if (node[1] != node[2]) {
+            e = add_elem(E, S, l, E_R, ".wb", node[1], node[2]);
+            e->val = expr_bin(EX_MUL, R, expr_call(FN_MAX, t, floor));
+        }
+        return;
+    }
+    default:
+        unreachable();
+    }
+    if (e->n[0] == e->n[1])
+        error_at(l->args[0].pos, "%s '%s' has both terminals on node '%s'", d->desc, l->name,
+                 l->args[0].name);
+}
+
+static void instantiate(Elab *E, Scope *S, Line *l) {
+    const char *bname = l->args[0].name;
+    BlockDef *def = NULL;
+    for (int i = 0; i < E->blocks.len; i++)
+        if (!strcmp(((BlockDef *)E->blocks.data[i])->name, bname))
+            def = E->blocks.data[i];
+    if (!def)
+        error_at(l->args[0].pos, "unknown block '%s'", bname);
+    for (Scope *s = S; s; s = s->parent)
+        if (s->def == def)
+            error_at(l->args[0].pos, "block '%s' uses itself", bname);
+    Line *h = def->head;
+    if (l->nargs - 1 != h->nargs)
+        error_at(l->namepos, "block '%s' has %d node%s, instance '%s' gives %d", bname, h->nargs,
+                 h->nargs == 1 ? "" : "s", l->name, l->nargs - 1);
+    Scope *in = arena_alloc(sizeof(Scope));
+    in->prefix = format("%s%s.", S->prefix, l->name);
+    in->def = def;
+    in->parent = S;
+    in->formal_node = arena_alloc(sizeof(int) * (size_t)(h->nargs + 1));
+    for (int i = 0; i < h->nargs; i++)
+        in->formal_node[i] = node_of(E, S, l->args[i + 1].name, l->args[i + 1].pos, true);
+    in->bparam = arena_alloc(sizeof(Expr *) * (size_t)(h->nkv + 1));
+    for (int i = 0; i < l->nkv; i++)
+        if (!key(h, l->kv[i].key))
+            error_at(l->kv[i].pos, "block '%s' has no param '%s'", bname, l->kv[i].key);
+    for (int i = 0; i < h->nkv; i++) {
+        KeyVal *given = key(l, h->kv[i].key);
+        in->bparam[i] = given ? value_expr(E, S, &given->val, h->kv[i].key)
+                              : value_expr(E, S->def ? S : &(Scope){.prefix = ""}, &h->kv[i].val,
+                                           h->kv[i].key);
+    }
+    for (int i = 0; i < def->lines.len; i++) {
+        Line *bl = def->lines.data[i];
+        if (bl->kind >= 0)
+            element(E, in, bl);
+    }
+}
+
+/* ---- probes and initial conditions ---- */
+
+static Elem *probe_elem(Elab *E, const Ref *r) {
+    Elem *e = find_elem(E, r->arg[0]);
+    if (e)
+        return e;
+    if (find_elem(E, format("%s.aw", r->arg[0])) || find_elem(E, format("%s.wb", r->arg[0])))
+        error_at(r->argpos[0], "'%s' is a pot: probe one half, %s.aw or %s.wb", r->arg[0],
+                 r->arg[0], r->arg[0]);
+    error_at(r->argpos[0], "unknown element '%s'", r->arg[0]);
+}
+
+static void dir_output(Elab *E, Line *l) {
+    for (int i = 0; i < E->outs.len; i++)
+        if (!strcmp(((Probe *)E->outs.data[i])->name, l->name))
+            error_at(l->namepos, "duplicate output '%s'", l->name);
+    const Ref *r = &l->refs[0];
+    Probe *p = arena_alloc(sizeof(Probe));
+    p->name = l->name;
+    p->pos = r->pos;
+    Scope top = {.prefix = ""};
+    if (r->fn == 'v' || r->fn == 'x') {
+        p->kind = r->fn == 'v' ? PR_V : PR_X;
+        for (int i = 0; i < 2; i++)
+            p->n[i] = r->arg[i] ? node_of(E, &top, r->arg[i], r->argpos[i], false) : 0;
+    } else {
+        if (r->arg[1])
+            error_at(r->argpos[1], "%c() takes one element name", r->fn);
+        if (r->fn == 'f' && E->c->domain == DOM_ELECTRICAL)
+            error_at(r->pos, "f() reads a force; this netlist is electrical (use i())");
+        p->kind = r->fn == 'i' ? PR_I : PR_F;
+        Elem *e = probe_elem(E, r);
+        for (int i = 0; i < E->elems.len; i++)
+            if (E->elems.data[i] == e)
+                p->elem = i;
+    }
+    vec_push(&E->outs, p);
+}
+
+static void dir_ic(Elab *E, Line *l) {
+    Scope top = {.prefix = ""};
+    for (int i = 0; i < l->nrefs; i++) {
+        const Ref *r = &l->refs[i];
+        if (r->fn != 'v' && r->fn != 'x')
+            error_at(r->pos, ".ic sets v(node) or x(node), not %c()", r->fn);
+        if (r->arg[1])
+            error_at(r->argpos[1], ".ic takes one node per condition");
+        IcSpec *ic = arena_alloc(sizeof(IcSpec));
+        ic->fn = r->fn;
+        ic->node = node_of(E, &top, r->arg[0], r->argpos[0], false);
+        if (ic->node == 0)
+            error_at(r->argpos[0], "ground has no initial condition");
+        ic->val = value_expr(E, &top, &l->refvals[i], "the initial condition");
+        ic->pos = r->pos;
+        for (int j = 0; j < E->ics.len; j++) {
+            IcSpec *o = E->ics.data[j];
+            if (o->fn == ic->fn && o->node == ic->node)
+                error_at(r->pos, "second initial condition for %c(%s)", r->fn, r->arg[0]);
+        }
+        vec_push(&E->ics, ic);
+    }
+}
+
+/* The .ic node values become element values: a capacitor gets
+ * v(n0) - v(n1), an inductor (x - x) / L, since x is its flux. */
+static void apply_ics(Elab *E) {
+    for (int i = 0; i < E->elems.len; i++) {
+        Elem *e = E->elems.data[i];
+        if ((e->kind != E_C && e->kind != E_L) || e->ic)
+            continue;
+        char fn = e->kind == E_C ? 'v' : 'x';
+        Expr *side[2] = {NULL, NULL};
+        for (int j = 0; j < E->ics.len; j++) {
+            IcSpec *ic = E->ics.data[j];
+            for (int k = 0; k < 2; k++)
+                if (ic->fn == fn && ic->node == e->n[k])
+                    side[k] = ic->val;
+        }
+        if (!side[0] && !side[1])
+            continue;
+        SrcPos pos = e->pos;
+        Expr *d = expr_bin(EX_SUB, side[0] ? side[0] : expr_num(0, pos),
+                           side[1] ? side[1] : expr_num(0, pos));
+        e->ic = e->kind == E_C ? d : expr_bin(EX_DIV, d, e->val);
+    }
+}
+
+/* ---- checks ---- */
+
+static void check_values(Elab *E) {
+    Circuit *c = E->c;
+    double *p = circuit_defaults(c);
+    for (int i = 0; i < c->nelems; i++) {
+        Elem *e = &c->elems[i];
+        if (e->kind == E_V && !e->val)
+            continue;
+        if (e->kind == E_I && !e->val)
+            continue;
+        double v = elem_value(c, e, p);
+        if (!(v > 0) || !isfinite(v))
+            error_at(e->pos, "%s '%s' has %s %g at the default params; it must be positive and finite",
+                     block_desc[e->user_kind].desc, e->name,
+                     e->kind == E_C ? "capacitance" : e->kind == E_L ? "inductance" : "resistance", v);
+        /* each param alone at its bounds */
+        for (int j = 0; j < c->nparams; j++) {
+            if (!(expr_params(e->val) >> j & 1) || j >= 64)
+                continue;
+            for (int s = 0; s < 2; s++) {
+                double save = p[j];
+                p[j] = s ? c->params[j].max : c->params[j].min;
+                if (isfinite(p[j])) {
+                    double w = elem_value(c, e, p);
+                    if (!(w > 0) || !isfinite(w))
+                        error_at(e->pos, "%s '%s' reaches %g when param '%s' = %g; it must stay positive "
+                                 "(narrow the param's range)", block_desc[e->user_kind].desc, e->name, w,
+                                 c->params[j].name, p[j]);
+                }
+                p[j] = save;
+            }
+        }
+    }
+}
+
+/* Every node needs two connections and a path to ground. */
+static void check_graph(Elab *E) {
+    Circuit *c = E->c;
+    if (c->nelems == 0)
+        error_at((SrcPos){0}, "%s: the netlist has no elements", c->path);
+    int *deg = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    int *first = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    for (int i = c->nelems - 1; i >= 0; i--)
+        for (int k = 0; k < 2; k++) {
+            deg[c->elems[i].n[k]]++;
+            first[c->elems[i].n[k]] = i;
+        }
+    for (int n = 1; n < c->nnodes; n++)
+        if (deg[n] < 2)
+            error_at(c->elems[first[n]].pos, "node '%s' has only one connection (%s)", c->nodes[n],
+                     c->elems[first[n]].name);
+    if (deg[0] == 0)
+        error_at(c->elems[0].pos, "nothing connects to ground (node 0)");
+    int *seen = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    int *stack = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    int sp = 0;
+    seen[0] = 1;
+    stack[sp++] = 0;
+    while (sp) {
+        int n = stack[--sp];
+        for (int i = 0; i < c->nelems; i++)
+            for (int k = 0; k < 2; k++)
+                if (c->elems[i].n[k] == n && !seen[c->elems[i].n[!k]]) {
+                    seen[c->elems[i].n[!k]] = 1;
+                    stack[sp++] = c->elems[i].n[!k];
+                }
+    }
+    for (int n = 1; n < c->nnodes; n++)
+        if (!seen[n])
+            error_at(c->elems[first[n]].pos, "node '%s' has no path to ground (node 0)", c->nodes[n]);
+}
+
+static const char *base_name(const char *path) {
+    const char *s = strrchr(path, '/');
+    s = s ? s + 1 : path;
+    const char *dot = strrchr(s, '.');
+    char *n = arena_strndup(s, dot ? (size_t)(dot - s) : strlen(s));
+    for (char *p = n; *p; p++)
+        if (!isalnum((unsigned char)*p))
+            *p = '_';
+    if (!isalpha((unsigned char)n[0]))
+        n = format("v_%s", n);
+    return n;
+}
+
+static void finish(Elab *E) {
+    Circuit *c = E->c;
+#define COPY(vec, field, count, T)                                          \
+    c->count = E->vec.len;                                                   \
+    c->field = arena_alloc(sizeof(T) * (size_t)(E->vec.len + 1));            \
+    for (int i = 0; i < E->vec.len; i++)                                     \
+        c->field[i] = *(T *)E->vec.data[i];
+    COPY(elems, elems, nelems, Elem)
+    COPY(params, params, nparams, Param)
+    COPY(outs, outs, nouts, Probe)
+    COPY(ics, ics, nics, IcSpec)
+#undef COPY
+    c->nnodes = E->nodes.len;
+    c->nodes = (const char **)E->nodes.data;
+    c->ninputs = E->inputs.len;
+    c->inputs = (const char **)E->inputs.data;
+}
+
+static Circuit *elaborate(SrcFile *f) {
+    Elab E = {0};
+    Circuit *c = E.c = arena_alloc(sizeof(Circuit));
+    c->path = f->path;
+    c->rate = 48000;
+    c->hash = 2166136261u;
+    for (const char *p = f->text; *p; p++)
+        c->hash = (c->hash ^ (unsigned char)*p) * 16777619u;
+    vec_push(&E.nodes, "0");
+    collect(&E, parse_file(f), NULL);
+    for (int i = 0; i < E.top.len; i++) {
+        Line *l = E.top.data[i];
+        if (!strcmp(l->head, ".param"))
+            dir_param(&E, l);
+        else if (l->kind < 0)
+            dir_simple(&E, l);
+    }
+    if (E.params.len > 64)
+        error_at(((Param *)E.params.data[64])->pos, "more than 64 params");
+    Scope top = {.prefix = ""};
+    for (int i = 0; i < E.top.len; i++) {
+        Line *l = E.top.data[i];
+        if (l->kind >= 0)
+            element(&E, &top, l);
+    }
+    for (int i = 0; i < E.top.len; i++) {
+        Line *l = E.top.data[i];
+        if (!strcmp(l->head, ".output"))
+            dir_output(&E, l);
+        else if (!strcmp(l->head, ".ic"))
+            dir_ic(&E, l);
+    }
+    if (!c->name)
+        c->name = base_name(f->path);
+    apply_ics(&E);
+    finish(&E);
+    check_graph(&E);
+    check_values(&E);
+    return c;
+}
+
+static Circuit *load(SrcFile *f) {
+    jmp_buf jb;
+    jmp_buf *saved = diag.jmp;
+    diag.jmp = &jb;
+    Circuit *c = NULL;
+    if (!setjmp(jb))
+        c = elaborate(f);
+    diag.jmp = saved;
+    return c;
+}
+
+Circuit *wdc_load_string(const char *name, const char *text) {
+    return load(srcfile_new(name, arena_strdup(text)));
+}
+
+Circuit *wdc_load(const char *path) {
+    size_t len;
+    char *text = read_file(path, &len);
+    if (!text) {
+        fprintf(diag.out ? diag.out : stderr, "wdc: error: cannot read '%s'\n", path);
+        diag.errors++;
+        return NULL;
+    }
+    if (strlen(text) != len) {
+        fprintf(diag.out ? diag.out : stderr, "%s:1:1: error: the file contains a NUL byte\n", path);
+        diag.errors++;
+        return NULL;
+    }
+    return load(srcfile_new(path, text));
+}
+
+const char *domain_unit(Domain d, char fn) {
+    bool mech = d == DOM_MECHANICAL;
+    bool ac = d == DOM_ACOUSTIC;
+    switch (fn) {
+    case 'v': return mech ? "m/s" : ac ? "Pa" : "V";
+    case 'i': case 'f': return mech ? "N" : ac ? "m^3/s" : "A";
+    case 'x': return mech ? "m" : ac ? "Pa*s" : "V*s";
+    }
+    return "";
+}
+
+void circuit_dump(const Circuit *c, FILE *out) {
+    static const char *kn[] = {"R", "C", "L", "V", "I"};
+    double *p = circuit_defaults(c);
+    fprintf(out, "voice %s, %d nodes, %d elements, rate %g\n", c->name, c->nnodes, c->nelems, c->rate);
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        fprintf(out, "  %s %s %s %s", kn[e->kind], e->name, c->nodes[e->n[0]], c->nodes[e->n[1]]);
+        if (e->val)
+            fprintf(out, " %.6g", elem_value(c, e, p));
+        if (e->input >= 0)
+            fprintf(out, " <- %s", c->inputs[e->input]);
+        else if (e->drive)
+            fprintf(out, " = %.6g", elem_drive(c, e, p));
+        if (e->ic)
+            fprintf(out, " ic=%.6g", expr_eval(e->ic, p));
+        fputc('\n', out);
+    }
+}

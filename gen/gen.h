@@ -1,0 +1,411 @@
+/*
+ * gen.h - the internal header of the wdc compiler.
+ *
+ * The pipeline, one phase per file:
+ *
+ *   lex.c    netlist text -> tokens (with source positions)
+ *   parse.c  tokens -> syntax lines (one Line per netlist line)
+ *   elab.c   lines -> Circuit: one flat graph of primitive elements in SI
+ *            units (mechanical elements mapped by the mobility analogy),
+ *            params, inputs, probes, initial conditions
+ *   wdf.c    Circuit -> Wdf: the adaptor tree (series/parallel adaptors
+ *            found by series-parallel reduction, the irreducible rest and
+ *            every ideal source gathered into one rigid root adaptor)
+ *   scatter.c  scattering matrices (LAPACKE) and the losslessness check
+ *   emit.c   Wdf -> C text of the voice, through templates/
+ *
+ * Memory policy: everything the compiler allocates comes from an arena
+ * (calloc) and is released only when the process exits.  Errors in the
+ * user's netlist go through error_at(), which prints
+ * FILE:LINE:COL: error: MESSAGE, the source line and a caret, and then
+ * unwinds to the caller of the phase (see Diag).  Internal failures go
+ * through die(), which names the C file and line and exits with status 3.
+ */
+#ifndef WDC_GEN_H
+#define WDC_GEN_H
+
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#define WDC_VERSION "0.1.0"
+
+/* util.c */
+
+typedef struct SrcFile SrcFile;
+struct SrcFile {
+    const char *path;   /* as given or resolved for .include */
+    const char *text;   /* whole contents, NUL-terminated */
+    SrcFile *includer;  /* file that included this one, or NULL */
+    int inc_line;       /* position of the .include line in includer */
+    int inc_col;
+};
+
+typedef struct SrcPos {
+    SrcFile *file;
+    int line; /* 1-based */
+    int col;  /* 1-based, in bytes */
+} SrcPos;
+
+/* Where diagnostics go.  A phase entry point sets `jmp` with setjmp; an
+ * error longjmps there after printing. */
+typedef struct Diag {
+    FILE *out;       /* stderr unless a test captures it */
+    int errors;
+    int warnings;
+    jmp_buf *jmp;    /* unwind target for error_at, or NULL to exit(1) */
+} Diag;
+
+extern Diag diag;
+
+void *arena_alloc(size_t n);
+char *arena_strdup(const char *s);
+char *arena_strndup(const char *s, size_t n);
+char *format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+char *read_file(const char *path, size_t *len);
+
+void error_at(SrcPos pos, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3), noreturn));
+void warn_at(SrcPos pos, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+void note_at(SrcPos pos, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+void die_(const char *file, int line, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4), noreturn));
+#define die(...) die_(__FILE__, __LINE__, __VA_ARGS__)
+#define unreachable() die("unreachable")
+
+/* Growable array of pointers, arena-backed. */
+typedef struct Vec {
+    void **data;
+    int len;
+    int cap;
+} Vec;
+void vec_push(Vec *v, void *p);
+
+/* lex.c */
+
+typedef enum {
+    TK_IDENT,  /* names, keywords, node names: [A-Za-z_0-9.:]-words */
+    TK_NUMBER, /* 4.7k, 1e-3, 10uF */
+    TK_STRING, /* "path" */
+    TK_LBRACE, /* the text of a braced expression is lexed on demand */
+    TK_EQ,
+    TK_LPAREN,
+    TK_RPAREN,
+    TK_COMMA,
+    TK_OTHER,  /* any other punctuation: one char */
+    TK_EOL,
+    TK_EOF,
+} TokKind;
+
+typedef struct Token {
+    TokKind kind;
+    SrcPos pos;
+    const char *text; /* the token's characters (for braces: the inside) */
+    int len;
+    double num;       /* TK_NUMBER: the value in SI units */
+} Token;
+
+/* Tokenises a whole file; errors (bad numbers, unterminated strings or
+ * braces) are reported at their position. */
+Token *lex_file(SrcFile *f, int *ntok);
+/* Parses a SPICE number with scale suffix; returns false if malformed and
+ * sets *why. */
+bool lex_number(const char *s, int len, double *out, const char **why);
+bool tok_is(const Token *t, const char *s);
+
+/* parse.c: expressions */
+
+typedef enum {
+    EX_NUM,   /* num */
+    EX_PARAM, /* param (index into Circuit.params) */
+    EX_NAME,  /* unresolved name (before elaboration) */
+    EX_NEG,
+    EX_ADD,
+    EX_SUB,
+    EX_MUL,
+    EX_DIV,
+    EX_POW,
+    EX_CALL,  /* fn(a[, b]) */
+} ExprKind;
+
+typedef enum {
+    FN_SQRT, FN_EXP, FN_LOG, FN_LOG10, FN_SIN, FN_COS, FN_TAN, FN_ABS,
+    FN_POW, FN_MIN, FN_MAX, FN_POTLIN, FN_POTLOG, FN_COUNT
+} FnKind;
+
+typedef struct Expr Expr;
+struct Expr {
+    ExprKind kind;
+    SrcPos pos;
+    double num;
+    int param;
+    const char *name;
+    FnKind fn;
+    Expr *a, *b;
+};
+
+Expr *expr_num(double v, SrcPos pos);
+Expr *expr_bin(ExprKind k, Expr *a, Expr *b);
+Expr *expr_call(FnKind fn, Expr *a, Expr *b);
+/* Value of an elaborated expression for the given param values. */
+double expr_eval(const Expr *e, const double *params);
+/* Bitmask of params an expression reads (params 0..63). */
+uint64_t expr_params(const Expr *e);
+bool expr_is_const(const Expr *e);
+const char *fn_name(FnKind fn);
+
+/* parse.c: lines */
+
+typedef enum {
+    VAL_EXPR,   /* number or {expression} */
+    VAL_NAME,   /* bare word */
+    VAL_STRING, /* "text" */
+    VAL_LIST,   /* ( ... ): raw tokens, for curve= */
+} ValKind;
+
+typedef struct Value {
+    ValKind kind;
+    SrcPos pos;
+    Expr *expr;       /* VAL_EXPR */
+    const char *name; /* VAL_NAME, VAL_STRING */
+    Token *toks;      /* VAL_LIST and taps lists */
+    int ntoks;
+} Value;
+
+typedef struct KeyVal {
+    const char *key;
+    SrcPos pos;
+    Value val;
+} KeyVal;
+
+/* A probe or initial-condition reference: v(a), v(a,b), i(R1), x(n), f(K1). */
+typedef struct Ref {
+    char fn;             /* 'v', 'i', 'x' or 'f' */
+    SrcPos pos;
+    const char *arg[2];  /* node or element names; arg[1] may be NULL */
+    SrcPos argpos[2];
+} Ref;
+
+typedef struct Line {
+    SrcPos pos;
+    const char *head;    /* directive (".param") or element name / keyword */
+    SrcPos headpos;
+    int kind;            /* element kind (BK_*) or -1 for directives */
+    const char *name;    /* element instance name */
+    SrcPos namepos;
+    Value *args;         /* positional arguments after the name */
+    int nargs;
+    KeyVal *kv;
+    int nkv;
+    Ref *refs;           /* .output probe / .ic references */
+    Value *refvals;      /* .ic values, parallel to refs */
+    int nrefs;
+} Line;
+
+typedef struct Program {
+    SrcFile *file;
+    Line *lines;
+    int nlines;
+} Program;
+
+/* Parses one file (not its includes: elaboration follows them).  Errors
+ * unwind through diag. */
+Program *parse_file(SrcFile *f);
+Expr *parse_expr_text(const Token *brace);
+SrcFile *srcfile_new(const char *path, const char *text);
+
+/* blocks: the element library (blocks/blocks.def) */
+
+#define BLOCK(id, kw, letter, nnodes, args, keys, ready, desc) id,
+typedef enum {
+#include "../blocks/blocks.def"
+    BK_COUNT
+} BlockKind;
+#undef BLOCK
+
+typedef struct BlockDesc {
+    const char *keyword;  /* e.g. "mass"; NULL for SPICE-letter-only kinds */
+    char letter;          /* SPICE first letter, or 0 */
+    int nnodes;           /* -1: variadic */
+    const char *args;     /* positional arguments after the nodes */
+    const char *keys;     /* space-separated list of accepted keys */
+    bool ready;           /* implemented by the current compiler */
+    const char *desc;     /* what it is, for messages */
+} BlockDesc;
+
+extern const BlockDesc block_desc[BK_COUNT];
+int block_by_keyword(const char *s, int len);
+int block_by_letter(char c);
+bool block_has_key(int kind, const char *key);
+
+/* elab.c: the circuit */
+
+typedef enum { DOM_ELECTRICAL, DOM_MECHANICAL, DOM_ACOUSTIC } Domain;
+
+typedef enum {
+    E_R, /* resistor: val = resistance (ohm) */
+    E_C, /* capacitor: val = capacitance (F) */
+    E_L, /* inductor: val = inductance (H) */
+    E_V, /* voltage source: v(n0)-v(n1) = drive + val*i; val NULL: ideal */
+    E_I, /* current source: drive flows n0 -> n1 through it; val: parallel R */
+} ElemKind;
+
+typedef struct Elem {
+    ElemKind kind;
+    const char *name;  /* unique; pots give "P1.aw" and "P1.wb" */
+    int n[2];          /* node indices; 0 is ground */
+    Expr *val;         /* see ElemKind */
+    int input;         /* sources: index of the driving input, or -1 */
+    Expr *drive;       /* sources without input: control-rate value */
+    Expr *ic;          /* C: initial voltage, L: initial current, or NULL */
+    SrcPos pos;
+    int user_kind;     /* BlockKind it came from */
+} Elem;
+
+typedef struct Param {
+    const char *name;
+    const char *unit;
+    double def, min, max;
+    SrcPos pos;
+} Param;
+
+typedef enum { PR_V, PR_I, PR_X, PR_F } ProbeKind;
+
+typedef struct Probe {
+    const char *name; /* output name */
+    ProbeKind kind;
+    int n[2];         /* PR_V / PR_X: nodes (n[1] = 0 for ground) */
+    int elem;         /* PR_I / PR_F: element index */
+    SrcPos pos;
+} Probe;
+
+typedef struct IcSpec {
+    char fn;     /* 'v' or 'x' */
+    int node;
+    Expr *val;
+    SrcPos pos;
+} IcSpec;
+
+typedef struct Circuit {
+    const char *name;     /* voice name */
+    const char *path;     /* main netlist file */
+    Domain domain;
+    double rate;          /* default sample rate, Hz */
+    int nnodes;           /* node 0 is ground */
+    const char **nodes;
+    Elem *elems;
+    int nelems;
+    Param *params;
+    int nparams;
+    const char **inputs;
+    int ninputs;
+    Probe *outs;
+    int nouts;
+    IcSpec *ics;
+    int nics;
+    uint32_t hash;        /* FNV-1a of the netlist text, includes appended */
+} Circuit;
+
+/* Parses and elaborates a netlist file.  Returns NULL after printing a
+ * diagnostic if the netlist has an error. */
+Circuit *wdc_load(const char *path);
+/* Same, from text in memory (name is used in diagnostics). */
+Circuit *wdc_load_string(const char *name, const char *text);
+/* Element values for the given params, checked positive; also used by
+ * tests as the reference for a network's values. */
+double elem_value(const Circuit *c, const Elem *e, const double *params);
+double elem_drive(const Circuit *c, const Elem *e, const double *params);
+/* Param defaults in one array (arena). */
+double *circuit_defaults(const Circuit *c);
+const char *domain_unit(Domain d, char fn);
+void circuit_dump(const Circuit *c, FILE *out);
+
+/* wdf.c: the adaptor tree */
+
+typedef enum {
+    W_LEAF,     /* one adaptable element */
+    W_SERIES,   /* series adaptor; its up port is adapted */
+    W_PARALLEL, /* parallel adaptor; its up port is adapted */
+} WKind;
+
+typedef struct WNode WNode;
+struct WNode {
+    WKind kind;
+    int id;           /* index in Wdf.nodes (post-order) */
+    int elem;         /* W_LEAF: element index */
+    int u, w;         /* graph nodes of the port, oriented u -> w */
+    int nchild;
+    WNode **child;
+    int *pol;         /* +1/-1: child's orientation against this port */
+    WNode *parent;
+    double R;         /* port resistance at the default params and rate */
+    uint64_t pmask;   /* params its port resistance depends on */
+};
+
+/* One edge of the root adaptor: a subtree's port or an ideal source. */
+typedef struct RootEdge {
+    int kind;   /* 0: port of subtree `node`, 1: ideal V source, 2: ideal I */
+    WNode *node;
+    int elem;   /* sources: element index */
+    int p, q;   /* core node indices (-1: the reference node) */
+} RootEdge;
+
+typedef struct Root {
+    int ncore;         /* core nodes, the reference excluded */
+    int *core_node;    /* graph node of each core index */
+    int ref_node;      /* graph node used as reference */
+    RootEdge *edge;
+    int nedge;
+    int nport;         /* ports first in edge[], then sources */
+    int nv;            /* ideal voltage sources among the edges */
+    /* M (nedge x nedge, row-major): outputs [a of each port; i of each
+     * V source, v of each I source] from inputs [b of each port; drive
+     * of each source], at the default params and rate. */
+    double *M;
+    uint64_t pmask;    /* params M depends on */
+} Root;
+
+typedef struct Wdf {
+    Circuit *c;
+    double fs;
+    WNode **nodes;     /* post-order: children before parents */
+    int nnodes;
+    Root root;
+    WNode **leaf_of;   /* element index -> its leaf, NULL for root sources */
+    /* Path from ground to each graph node: element indices with sign,
+     * so v(node) = sum sign * v(elem). */
+    int **path;
+    int *pathlen;
+} Wdf;
+
+Wdf *wdf_build(Circuit *c, double fs);
+void wdf_dot(const Wdf *w, FILE *out);
+void wdf_dump(const Wdf *w, FILE *out);
+
+/* scatter.c */
+
+/* Solves the root adaptor's matrix M for port resistances R (one per port
+ * edge) and returns 0, or -1 if the core is singular. */
+int scatter_root(const Root *r, const double *R, double *M);
+/* Scattering matrix of an adaptor (ports: up port first, then children),
+ * n x n row-major; for the root, the port-to-port block. */
+void scatter_node(const WNode *n, double *S);
+/* Max |S^T G S - G| / max G over every adaptor; errors if it exceeds tol. */
+double scatter_check(const Wdf *w, double tol);
+
+/* emit.c */
+
+typedef struct EmitOpts {
+    bool single;        /* float precision */
+    const char *outdir;
+    const char *tmpldir; /* templates/ */
+} EmitOpts;
+
+/* Writes outdir/NAME.c and outdir/NAME.h; returns 0 or -1 (I/O error). */
+int emit_voice(const Wdf *w, const EmitOpts *o);
+
+#endif

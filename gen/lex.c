@@ -1,0 +1,225 @@
+/* lex.c: netlist text -> tokens.
+ *
+ * The netlist is line oriented: every logical line ends with TK_EOL.  A
+ * line whose first non-blank character is '+' continues the previous one
+ * (SPICE).  '#' starts a comment anywhere; '*' at the start of a line is a
+ * SPICE comment line.  Words (names, nodes, numbers, directives) are runs
+ * of letters, digits, '_' and '.'; whether a word is a number is decided by
+ * the parser where it expects one, so SPICE node names such as `1` work. */
+#include <ctype.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gen.h"
+
+typedef struct Lexer {
+    SrcFile *file;
+    const char *p;
+    int line;
+    const char *line_start;
+    Token *toks;
+    int ntok, cap;
+} Lexer;
+
+static SrcPos pos_of(Lexer *L, const char *p) {
+    return (SrcPos){L->file, L->line, (int)(p - L->line_start) + 1};
+}
+
+static Token *push(Lexer *L, TokKind k, const char *start, int len) {
+    if (L->ntok == L->cap) {
+        L->cap = L->cap ? 2 * L->cap : 256;
+        Token *t = arena_alloc(sizeof(Token) * (size_t)L->cap);
+        if (L->ntok)
+            memcpy(t, L->toks, sizeof(Token) * (size_t)L->ntok);
+        L->toks = t;
+    }
+    Token *t = &L->toks[L->ntok++];
+    *t = (Token){.kind = k, .pos = pos_of(L, start), .text = start, .len = len};
+    return t;
+}
+
+static bool is_word(int c) { return isalnum(c) || c == '_' || c == '.'; }
+
+bool tok_is(const Token *t, const char *s) {
+    return (int)strlen(s) == t->len && !strncmp(t->text, s, (size_t)t->len);
+}
+
+/* Scale suffixes, case-insensitive; "meg" before "m". */
+static const struct { const char *s; double v; } suffixes[] = {
+    {"meg", 1e6}, {"f", 1e-15}, {"p", 1e-12}, {"n", 1e-9}, {"u", 1e-6},
+    {"m", 1e-3},  {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
+};
+
+/* Unit words that may follow a number and its suffix (ignored). */
+static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "Ohm", "N", "g"};
+
+bool lex_number(const char *s, int len, double *out, const char **why) {
+    char buf[64];
+    if (len <= 0 || len >= (int)sizeof buf) {
+        *why = "number too long";
+        return false;
+    }
+    memcpy(buf, s, (size_t)len);
+    buf[len] = '\0';
+    char *end;
+    const char *q = buf;
+    if (*q == '+' || *q == '-')
+        q++;
+    if (!isdigit((unsigned char)*q) && !(*q == '.' && isdigit((unsigned char)q[1]))) {
+        *why = "not a number";
+        return false;
+    }
+    /* strtod would accept hex and inf/nan; the checks above exclude them
+     * except "0x", refused here. */
+    if (q[0] == '0' && (q[1] == 'x' || q[1] == 'X')) {
+        *why = "hexadecimal numbers are not accepted";
+        return false;
+    }
+    double v = strtod(buf, &end);
+    if (end == buf) {
+        *why = "not a number";
+        return false;
+    }
+    const char *rest = end;
+    double scale = 1;
+    for (size_t i = 0; i < sizeof suffixes / sizeof suffixes[0]; i++) {
+        size_t n = strlen(suffixes[i].s);
+        if (!strncasecmp(rest, suffixes[i].s, n)) {
+            scale = suffixes[i].v;
+            rest += n;
+            break;
+        }
+    }
+    if (*rest) {
+        bool ok = false;
+        for (size_t i = 0; i < sizeof units / sizeof units[0]; i++)
+            if (!strcmp(rest, units[i]))
+                ok = true;
+        if (!ok) {
+            *why = format("unknown scale suffix or unit '%s'", rest);
+            return false;
+        }
+    }
+    v *= scale;
+    if (!isfinite(v)) {
+        *why = "number out of range";
+        return false;
+    }
+    *out = v;
+    return true;
+}
+
+/* Skips a '+' continuation: returns true if the next line continues. */
+static bool continues(const char *p) {
+    while (*p == ' ' || *p == '\t')
+        p++;
+    return *p == '+';
+}
+
+static void newline(Lexer *L) {
+    L->p++;
+    L->line++;
+    L->line_start = L->p;
+}
+
+static void lex_brace(Lexer *L) {
+    const char *start = L->p;
+    int depth = 0;
+    for (const char *q = L->p; *q && *q != '\n'; q++) {
+        if (*q == '{')
+            depth++;
+        else if (*q == '}' && --depth == 0) {
+            Token *t = push(L, TK_LBRACE, start + 1, (int)(q - start - 1));
+            t->pos = pos_of(L, start + 1);
+            L->p = q + 1;
+            return;
+        }
+    }
+    error_at(pos_of(L, start), "unterminated '{': expected '}' on the same line");
+}
+
+static void lex_word(Lexer *L) {
+    const char *s = L->p;
+    const char *q = s;
+    if (*q == '+' || *q == '-')
+        q++;
+    bool numeric = isdigit((unsigned char)*q) || (*q == '.' && isdigit((unsigned char)q[1]));
+    while (*q) {
+        if (is_word((unsigned char)*q))
+            q++;
+        else if ((*q == '+' || *q == '-') && numeric && (q[-1] == 'e' || q[-1] == 'E') &&
+                 isdigit((unsigned char)q[1]))
+            q++; /* exponent sign inside a number such as 1e-3 */
+        else
+            break;
+    }
+    Token *t = push(L, TK_IDENT, s, (int)(q - s));
+    const char *why;
+    double v;
+    if (lex_number(s, (int)(q - s), &v, &why)) {
+        t->kind = TK_NUMBER;
+        t->num = v;
+    }
+    L->p = q;
+}
+
+Token *lex_file(SrcFile *f, int *ntok) {
+    Lexer L = {.file = f, .p = f->text, .line = 1, .line_start = f->text};
+    bool at_line_start = true;
+    while (*L.p) {
+        char c = *L.p;
+        if (c == '\n') {
+            if (continues(L.p + 1)) {
+                newline(&L);
+                while (*L.p == ' ' || *L.p == '\t')
+                    L.p++;
+                L.p++; /* the '+' */
+                continue;
+            }
+            if (L.ntok && L.toks[L.ntok - 1].kind != TK_EOL)
+                push(&L, TK_EOL, L.p, 0);
+            newline(&L);
+            at_line_start = true;
+            continue;
+        }
+        if (c == ' ' || c == '\t' || c == '\r') {
+            L.p++;
+            continue;
+        }
+        if (c == '#' || c == ';' || (c == '*' && at_line_start)) {
+            while (*L.p && *L.p != '\n')
+                L.p++;
+            continue;
+        }
+        at_line_start = false;
+        if (c == '{') {
+            lex_brace(&L);
+        } else if (c == '"') {
+            const char *s = L.p + 1, *q = s;
+            while (*q && *q != '"' && *q != '\n')
+                q++;
+            if (*q != '"')
+                error_at(pos_of(&L, L.p), "unterminated string");
+            Token *t = push(&L, TK_STRING, s, (int)(q - s));
+            t->pos = pos_of(&L, L.p);
+            L.p = q + 1;
+        } else if (is_word((unsigned char)c) ||
+                   ((c == '-' || c == '+') &&
+                    (isdigit((unsigned char)L.p[1]) || L.p[1] == '.'))) {
+            lex_word(&L);
+        } else {
+            TokKind k = c == '=' ? TK_EQ : c == '(' ? TK_LPAREN : c == ')' ? TK_RPAREN
+                      : c == ',' ? TK_COMMA : TK_OTHER;
+            if (k == TK_OTHER && !isprint((unsigned char)c))
+                error_at(pos_of(&L, L.p), "stray byte 0x%02x in netlist", (unsigned char)c);
+            push(&L, k, L.p, 1);
+            L.p++;
+        }
+    }
+    if (L.ntok && L.toks[L.ntok - 1].kind != TK_EOL)
+        push(&L, TK_EOL, L.p, 0);
+    push(&L, TK_EOF, L.p, 0);
+    *ntok = L.ntok;
+    return L.toks;
+}

@@ -1,0 +1,582 @@
+/* parse.c: tokens -> syntax lines, and braced expressions -> Expr.
+ *
+ * The grammar, one production per function below:
+ *
+ *   netlist   = line* EOF
+ *   line      = EOL | directive EOL | element EOL
+ *   element   = NAME node{n} arg* keyval*       (kind from NAME's letter)
+ *             | KEYWORD NAME node{n} arg* keyval*
+ *   keyval    = WORD '=' value
+ *   value     = NUMBER | '{' expr '}' | WORD | STRING | '(' token* ')'
+ *               (a value followed by '@', ',' or ':' runs on as a list)
+ *   directive = '.voice' NAME | '.domain' WORD | '.rate' value
+ *             | '.input' NAME+ | '.param' NAME ['='] value keyval*
+ *             | '.model' NAME KIND keyval* | '.include' (STRING | WORD)
+ *             | '.block' NAME node* keyval* | '.endblock'
+ *             | '.output' NAME ref | '.ic' (ref '=' value)+ | '.end'
+ *   ref       = WORD '(' WORD [',' WORD] ')'
+ *
+ *   expr      = term (('+' | '-') term)*
+ *   term      = unary (('*' | '/') unary)*
+ *   unary     = ('-' | '+') unary | power
+ *   power     = primary [('^' | '**') unary]
+ *   primary   = NUMBER | NAME | NAME '(' expr [',' expr] ')' | '(' expr ')'
+ */
+#include <ctype.h>
+#include <math.h>
+#include <string.h>
+
+#include "gen.h"
+
+typedef struct Parser {
+    Token *tok;   /* current token */
+    SrcFile *file;
+} Parser;
+
+static char *tok_str(const Token *t) { return arena_strndup(t->text, (size_t)t->len); }
+
+static bool at_eol(Parser *P) { return P->tok->kind == TK_EOL || P->tok->kind == TK_EOF; }
+
+static bool is_punct(const Token *t, char c) {
+    return t->len == 1 && t->text[0] == c && t->kind != TK_STRING && t->kind != TK_LBRACE;
+}
+
+/* ---- expressions ---- */
+
+typedef struct ELex {
+    const char *p, *start;
+    SrcPos base; /* position of the first character inside the braces */
+    char kind;   /* 'n' number, 'w' word, 'e' end, or the punctuation char */
+    const char *text;
+    int len;
+    double num;
+    SrcPos pos;
+} ELex;
+
+static void enext(ELex *E) {
+    while (*E->p == ' ' || *E->p == '\t')
+        E->p++;
+    E->text = E->p;
+    E->pos = E->base;
+    E->pos.col += (int)(E->p - E->start);
+    if (!*E->p) {
+        E->kind = 'e';
+        E->len = 0;
+        return;
+    }
+    if (isalnum((unsigned char)*E->p) || *E->p == '_' || *E->p == '.') {
+        const char *q = E->p;
+        bool numeric = isdigit((unsigned char)*q) || *q == '.';
+        while (isalnum((unsigned char)*q) || *q == '_' || *q == '.' ||
+               (numeric && (*q == '+' || *q == '-') && (q[-1] == 'e' || q[-1] == 'E') &&
+                isdigit((unsigned char)q[1])))
+            q++;
+        E->len = (int)(q - E->p);
+        E->p = q;
+        if (numeric) {
+            const char *why;
+            if (!lex_number(E->text, E->len, &E->num, &why))
+                error_at(E->pos, "malformed number '%.*s': %s", E->len, E->text, why);
+            E->kind = 'n';
+        } else {
+            E->kind = 'w';
+        }
+        return;
+    }
+    if (E->p[0] == '*' && E->p[1] == '*') {
+        E->kind = '^';
+        E->len = 2;
+        E->p += 2;
+        return;
+    }
+    if (strchr("+-*/^(),", *E->p)) {
+        E->kind = *E->p;
+        E->len = 1;
+        E->p++;
+        return;
+    }
+    error_at(E->pos, "unexpected character '%c' in expression", *E->p);
+}
+
+static Expr *new_expr(ExprKind k, SrcPos pos) {
+    Expr *e = arena_alloc(sizeof(Expr));
+    e->kind = k;
+    e->pos = pos;
+    return e;
+}
+
+Expr *expr_num(double v, SrcPos pos) {
+    Expr *e = new_expr(EX_NUM, pos);
+    e->num = v;
+    return e;
+}
+
+Expr *expr_bin(ExprKind k, Expr *a, Expr *b) {
+    Expr *e = new_expr(k, a->pos);
+    e->a = a;
+    e->b = b;
+    return e;
+}
+
+Expr *expr_call(FnKind fn, Expr *a, Expr *b) {
+    Expr *e = new_expr(EX_CALL, a->pos);
+    e->fn = fn;
+    e->a = a;
+    e->b = b;
+    return e;
+}
+
+static const struct { const char *name; int nargs; } fns[FN_COUNT] = {
+    [FN_SQRT] = {"sqrt", 1}, [FN_EXP] = {"exp", 1},   [FN_LOG] = {"log", 1},
+    [FN_LOG10] = {"log10", 1}, [FN_SIN] = {"sin", 1}, [FN_COS] = {"cos", 1},
+    [FN_TAN] = {"tan", 1},   [FN_ABS] = {"abs", 1},   [FN_POW] = {"pow", 2},
+    [FN_MIN] = {"min", 2},   [FN_MAX] = {"max", 2},   [FN_POTLIN] = {"potlin", 1},
+    [FN_POTLOG] = {"potlog", 1},
+};
+
+const char *fn_name(FnKind fn) { return fns[fn].name; }
+
+static Expr *expr(ELex *E);
+static Expr *unary(ELex *E);
+
+static void expect(ELex *E, char k, const char *what) {
+    if (E->kind != k)
+        error_at(E->pos, "expected %s in expression", what);
+    enext(E);
+}
+
+/* primary = NUMBER | NAME | NAME '(' expr [',' expr] ')' | '(' expr ')' */
+static Expr *primary(ELex *E) {
+    SrcPos pos = E->pos;
+    if (E->kind == 'n') {
+        Expr *e = expr_num(E->num, pos);
+        enext(E);
+        return e;
+    }
+    if (E->kind == '(') {
+        enext(E);
+        Expr *e = expr(E);
+        expect(E, ')', "')'");
+        return e;
+    }
+    if (E->kind != 'w')
+        error_at(pos, E->kind == 'e' ? "expression ends too early" : "expected a number, a name or '('");
+    char *name = arena_strndup(E->text, (size_t)E->len);
+    enext(E);
+    if (E->kind != '(') {
+        Expr *e = new_expr(EX_NAME, pos);
+        e->name = name;
+        return e;
+    }
+    int fn = -1;
+    for (int i = 0; i < FN_COUNT; i++)
+        if (!strcmp(fns[i].name, name))
+            fn = i;
+    if (fn < 0)
+        error_at(pos, "unknown function '%s'", name);
+    enext(E);
+    Expr *a = expr(E), *b = NULL;
+    if (fns[fn].nargs == 2) {
+        expect(E, ',', "',' (the function takes two arguments)");
+        b = expr(E);
+    }
+    expect(E, ')', "')'");
+    Expr *e = expr_call((FnKind)fn, a, b);
+    e->pos = pos;
+    return e;
+}
+
+/* power = primary [('^' | '**') unary] */
+static Expr *power(ELex *E) {
+    Expr *e = primary(E);
+    if (E->kind == '^') {
+        enext(E);
+        e = expr_bin(EX_POW, e, unary(E));
+    }
+    return e;
+}
+
+/* unary = ('-' | '+') unary | power */
+static Expr *unary(ELex *E) {
+    if (E->kind == '-' || E->kind == '+') {
+        SrcPos pos = E->pos;
+        bool neg = E->kind == '-';
+        enext(E);
+        Expr *a = unary(E);
+        if (!neg)
+            return a;
+        Expr *e = new_expr(EX_NEG, pos);
+        e->a = a;
+        return e;
+    }
+    return power(E);
+}
+
+/* term = unary (('*' | '/') unary)* */
+static Expr *term(ELex *E) {
+    Expr *e = unary(E);
+    while (E->kind == '*' || E->kind == '/') {
+        ExprKind k = E->kind == '*' ? EX_MUL : EX_DIV;
+        enext(E);
+        e = expr_bin(k, e, unary(E));
+    }
+    return e;
+}
+
+/* expr = term (('+' | '-') term)* */
+static Expr *expr(ELex *E) {
+    Expr *e = term(E);
+    while (E->kind == '+' || E->kind == '-') {
+        ExprKind k = E->kind == '+' ? EX_ADD : EX_SUB;
+        enext(E);
+        e = expr_bin(k, e, term(E));
+    }
+    return e;
+}
+
+Expr *parse_expr_text(const Token *brace) {
+    char *text = tok_str(brace);
+    ELex E = {.p = text, .start = text, .base = brace->pos};
+    enext(&E);
+    if (E.kind == 'e')
+        error_at(brace->pos, "empty expression");
+    Expr *e = expr(&E);
+    if (E.kind != 'e')
+        error_at(E.pos, "unexpected '%.*s' after expression", E.len, E.text);
+    return e;
+}
+
+/* ---- lines ---- */
+
+static bool starts_numeric(const Token *t) {
+    const char *s = t->text;
+    if (*s == '+' || *s == '-')
+        s++;
+    return isdigit((unsigned char)*s) || (*s == '.' && t->len > 1);
+}
+
+static Value number_value(const Token *t) {
+    if (t->kind != TK_NUMBER) {
+        const char *why = "not a number";
+        double v;
+        lex_number(t->text, t->len, &v, &why);
+        error_at(t->pos, "malformed number '%.*s': %s", t->len, t->text, why);
+    }
+    return (Value){.kind = VAL_EXPR, .pos = t->pos, .expr = expr_num(t->num, t->pos)};
+}
+
+/* value = NUMBER | '{' expr '}' | WORD | STRING | '(' token* ')' */
+static Value value(Parser *P) {
+    Token *t = P->tok;
+    Value v = {.pos = t->pos};
+    if (t->kind == TK_NUMBER || (t->kind == TK_IDENT && starts_numeric(t))) {
+        v = number_value(t);
+    } else if (t->kind == TK_LBRACE) {
+        v.kind = VAL_EXPR;
+        v.expr = parse_expr_text(t);
+    } else if (t->kind == TK_IDENT) {
+        v.kind = VAL_NAME;
+        v.name = tok_str(t);
+    } else if (t->kind == TK_STRING) {
+        v.kind = VAL_STRING;
+        v.name = tok_str(t);
+    } else if (t->kind == TK_LPAREN) {
+        Token *s = ++P->tok;
+        while (P->tok->kind != TK_RPAREN) {
+            if (at_eol(P))
+                error_at(t->pos, "unterminated '(': expected ')' before the end of the line");
+            P->tok++;
+        }
+        v.kind = VAL_LIST;
+        v.toks = s;
+        v.ntoks = (int)(P->tok - s);
+    } else {
+        error_at(t->pos, at_eol(P) ? "expected a value at the end of the line"
+                                   : "expected a value, found '%.*s'", t->len, t->text);
+    }
+    P->tok++;
+    /* taps=h@0.12,p@0.5 and similar run on as a list of tokens */
+    if (is_punct(P->tok, '@') || is_punct(P->tok, ':') || is_punct(P->tok, '/') ||
+        P->tok->kind == TK_COMMA) {
+        v.kind = VAL_LIST;
+        v.toks = t;
+        while (!at_eol(P) && !(P->tok->kind == TK_IDENT && P->tok[1].kind == TK_EQ))
+            P->tok++;
+        v.ntoks = (int)(P->tok - t);
+    }
+    return v;
+}
+
+static bool at_keyval(Parser *P) { return P->tok->kind == TK_IDENT && P->tok[1].kind == TK_EQ; }
+
+/* keyval = WORD '=' value; collects them to the end of the line. */
+static void keyvals(Parser *P, Line *l) {
+    Vec kv = {0};
+    while (!at_eol(P)) {
+        if (!at_keyval(P)) {
+            Token *t = P->tok;
+            error_at(t->pos, "unexpected '%.*s': expected key=value", t->len, t->text);
+        }
+        KeyVal *k = arena_alloc(sizeof(KeyVal));
+        k->key = tok_str(P->tok);
+        k->pos = P->tok->pos;
+        for (int i = 0; i < kv.len; i++)
+            if (!strcmp(((KeyVal *)kv.data[i])->key, k->key))
+                error_at(k->pos, "key '%s' given twice", k->key);
+        P->tok += 2;
+        if (at_eol(P))
+            error_at(P->tok[-1].pos, "expected a value after '='");
+        k->val = value(P);
+        vec_push(&kv, k);
+    }
+    l->nkv = kv.len;
+    l->kv = arena_alloc(sizeof(KeyVal) * (size_t)(kv.len + 1));
+    for (int i = 0; i < kv.len; i++)
+        l->kv[i] = *(KeyVal *)kv.data[i];
+}
+
+static const char *word(Parser *P, const char *what) {
+    Token *t = P->tok;
+    if (t->kind != TK_IDENT && t->kind != TK_NUMBER)
+        error_at(t->pos, at_eol(P) ? "missing %s at the end of the line" : "expected %s", what);
+    P->tok++;
+    return tok_str(t);
+}
+
+static void add_arg(Vec *args, Value v) {
+    Value *p = arena_alloc(sizeof(Value));
+    *p = v;
+    vec_push(args, p);
+}
+
+static void set_args(Line *l, Vec *args) {
+    l->nargs = args->len;
+    l->args = arena_alloc(sizeof(Value) * (size_t)(args->len + 1));
+    for (int i = 0; i < args->len; i++)
+        l->args[i] = *(Value *)args->data[i];
+}
+
+static Value node_value(Parser *P) {
+    Token *t = P->tok;
+    if (t->kind != TK_IDENT && t->kind != TK_NUMBER)
+        error_at(t->pos, "expected a node name, found '%.*s'", t->len, t->text);
+    P->tok++;
+    return (Value){.kind = VAL_NAME, .pos = t->pos, .name = tok_str(t)};
+}
+
+/* element = NAME node{n} arg* keyval* | KEYWORD NAME node{n} arg* keyval* */
+static void element(Parser *P, Line *l) {
+    Token *h = P->tok;
+    int kind = block_by_keyword(h->text, h->len);
+    if (kind >= 0) {
+        P->tok++;
+        if (at_eol(P))
+            error_at(P->tok->pos, "missing %s name after '%s'", block_desc[kind].desc, l->head);
+        l->namepos = P->tok->pos;
+        l->name = word(P, "a name");
+    } else {
+        kind = h->kind == TK_IDENT ? block_by_letter(h->text[0]) : -1;
+        if (kind < 0)
+            error_at(h->pos, "unknown element kind '%.*s'", h->len, h->text);
+        l->name = l->head;
+        l->namepos = h->pos;
+        P->tok++;
+    }
+    l->kind = kind;
+    const BlockDesc *d = &block_desc[kind];
+    Vec args = {0};
+    if (kind == BK_USE) { /* use BLOCK INST node... */
+        add_arg(&args, node_value(P));
+        l->namepos = P->tok->pos;
+        l->name = word(P, "an instance name");
+    }
+    for (const char *a = d->args; *a == 't'; a++)
+        add_arg(&args, node_value(P));
+    if (d->nnodes < 0) {
+        while (!at_eol(P) && !at_keyval(P))
+            add_arg(&args, node_value(P));
+    } else {
+        for (int i = 0; i < d->nnodes; i++) {
+            if (at_eol(P) || at_keyval(P))
+                error_at(P->tok->pos, "%s '%s' needs %d node%s, found %d", d->desc, l->name,
+                         d->nnodes, d->nnodes > 1 ? "s" : "", i);
+            add_arg(&args, node_value(P));
+        }
+    }
+    for (const char *a = d->args; *a; a++) {
+        if (*a == 't')
+            continue;
+        if (at_eol(P) || at_keyval(P)) {
+            if (*a == 'v' && at_keyval(P))
+                break; /* value may come as a key, e.g. R1 a b R=1k */
+            error_at(P->tok->pos, "%s '%s' needs %s after its nodes", d->desc, l->name,
+                     *a == 'm' ? "a model name" : *a == 'd' ? "a drive (input, param or value)" : "a value");
+        }
+        add_arg(&args, value(P));
+    }
+    set_args(l, &args);
+    if (!at_eol(P) && !at_keyval(P)) {
+        Token *t = P->tok;
+        if (d->nnodes >= 0)
+            error_at(t->pos, "too many nodes or values for %s '%s': unexpected '%.*s'", d->desc,
+                     l->name, t->len, t->text);
+    }
+    keyvals(P, l);
+}
+
+/* ref = WORD '(' WORD [',' WORD] ')' */
+static Ref ref(Parser *P) {
+    Token *t = P->tok;
+    Ref r = {.pos = t->pos};
+    if (t->kind != TK_IDENT || t->len != 1 || !strchr("vixfVIXF", t->text[0]) ||
+        t[1].kind != TK_LPAREN)
+        error_at(t->pos, "expected a probe v(node), v(a,b), i(elem), x(node) or f(elem)");
+    r.fn = (char)tolower((unsigned char)t->text[0]);
+    P->tok += 2;
+    for (int i = 0; i < 2; i++) {
+        Token *a = P->tok;
+        if (a->kind != TK_IDENT && a->kind != TK_NUMBER)
+            error_at(a->pos, "expected a %s name in the probe", r.fn == 'i' || r.fn == 'f' ? "element" : "node");
+        r.arg[i] = tok_str(a);
+        r.argpos[i] = a->pos;
+        P->tok++;
+        if (P->tok->kind == TK_RPAREN)
+            break;
+        if (P->tok->kind != TK_COMMA || i == 1)
+            error_at(P->tok->pos, "expected ')' to close the probe");
+        P->tok++;
+    }
+    P->tok++;
+    return r;
+}
+
+static void push_ref(Vec *refs, Vec *vals, Ref r, Value *v) {
+    Ref *rp = arena_alloc(sizeof(Ref));
+    *rp = r;
+    vec_push(refs, rp);
+    if (vals)
+        vec_push(vals, v);
+}
+
+static void set_refs(Line *l, Vec *refs, Vec *vals) {
+    l->nrefs = refs->len;
+    l->refs = arena_alloc(sizeof(Ref) * (size_t)(refs->len + 1));
+    l->refvals = arena_alloc(sizeof(Value) * (size_t)(refs->len + 1));
+    for (int i = 0; i < refs->len; i++) {
+        l->refs[i] = *(Ref *)refs->data[i];
+        if (vals)
+            l->refvals[i] = *(Value *)vals->data[i];
+    }
+}
+
+/* directive = '.voice' NAME | ... (see the grammar at the top) */
+static bool directive(Parser *P, Line *l) {
+    const char *d = l->head;
+    Vec args = {0};
+    P->tok++;
+    if (!strcmp(d, ".voice") || !strcmp(d, ".domain") || !strcmp(d, ".endblock") ||
+        !strcmp(d, ".ends") || !strcmp(d, ".end")) {
+        if (strcmp(d, ".endblock") && strcmp(d, ".ends") && strcmp(d, ".end"))
+            add_arg(&args, node_value(P));
+    } else if (!strcmp(d, ".rate")) {
+        if (at_eol(P))
+            error_at(P->tok->pos, "missing sample rate after .rate");
+        add_arg(&args, value(P));
+    } else if (!strcmp(d, ".input")) {
+        if (at_eol(P))
+            error_at(P->tok->pos, "missing input name after .input");
+        while (!at_eol(P))
+            add_arg(&args, node_value(P));
+    } else if (!strcmp(d, ".param")) {
+        l->namepos = P->tok->pos;
+        l->name = word(P, "a param name");
+        if (P->tok->kind == TK_EQ)
+            P->tok++;
+        if (at_eol(P))
+            error_at(P->tok->pos, "missing default value of param '%s'", l->name);
+        add_arg(&args, value(P));
+    } else if (!strcmp(d, ".model")) {
+        l->namepos = P->tok->pos;
+        l->name = word(P, "a model name");
+        add_arg(&args, node_value(P));
+    } else if (!strcmp(d, ".include")) {
+        if (P->tok->kind != TK_STRING && P->tok->kind != TK_IDENT)
+            error_at(P->tok->pos, "expected a file name after .include");
+        add_arg(&args, value(P));
+    } else if (!strcmp(d, ".block")) {
+        l->namepos = P->tok->pos;
+        l->name = word(P, "a block name");
+        while (!at_eol(P) && !at_keyval(P))
+            add_arg(&args, node_value(P));
+    } else if (!strcmp(d, ".output")) {
+        l->namepos = P->tok->pos;
+        l->name = word(P, "an output name");
+        Vec refs = {0};
+        push_ref(&refs, NULL, ref(P), NULL);
+        set_refs(l, &refs, NULL);
+    } else if (!strcmp(d, ".ic")) {
+        Vec refs = {0}, vals = {0};
+        if (at_eol(P))
+            error_at(P->tok->pos, "expected v(node)=value or x(node)=value after .ic");
+        while (!at_eol(P)) {
+            Ref r = ref(P);
+            if (P->tok->kind != TK_EQ)
+                error_at(P->tok->pos, "expected '=' after %c(%s)", r.fn, r.arg[0]);
+            P->tok++;
+            Value *v = arena_alloc(sizeof(Value));
+            *v = value(P);
+            push_ref(&refs, &vals, r, v);
+        }
+        set_refs(l, &refs, &vals);
+    } else {
+        error_at(l->headpos, "unknown directive '%s'", d);
+    }
+    set_args(l, &args);
+    keyvals(P, l);
+    return !strcmp(d, ".end");
+}
+
+SrcFile *srcfile_new(const char *path, const char *text) {
+    SrcFile *f = arena_alloc(sizeof(SrcFile));
+    f->path = arena_strdup(path);
+    f->text = text;
+    return f;
+}
+
+/* netlist = line* EOF */
+Program *parse_file(SrcFile *f) {
+    int ntok;
+    Token *toks = lex_file(f, &ntok);
+    Parser P = {.tok = toks, .file = f};
+    Vec lines = {0};
+    while (P.tok->kind != TK_EOF) {
+        if (P.tok->kind == TK_EOL) {
+            P.tok++;
+            continue;
+        }
+        Line *l = arena_alloc(sizeof(Line));
+        l->pos = l->headpos = P.tok->pos;
+        l->head = tok_str(P.tok);
+        l->kind = -1;
+        bool end = false;
+        if (P.tok->kind == TK_IDENT && P.tok->text[0] == '.')
+            end = directive(&P, l);
+        else if (P.tok->kind == TK_IDENT || P.tok->kind == TK_NUMBER)
+            element(&P, l);
+        else
+            error_at(P.tok->pos, "expected an element or a directive, found '%.*s'", P.tok->len,
+                     P.tok->text);
+        if (!at_eol(&P))
+            error_at(P.tok->pos, "unexpected '%.*s' at the end of the line", P.tok->len, P.tok->text);
+        vec_push(&lines, l);
+        if (end)
+            break;
+    }
+    Program *prog = arena_alloc(sizeof(Program));
+    prog->file = f;
+    prog->nlines = lines.len;
+    prog->lines = arena_alloc(sizeof(Line) * (size_t)(lines.len + 1));
+    for (int i = 0; i < lines.len; i++)
+        prog->lines[i] = *(Line *)lines.data[i];
+    return prog;
+}

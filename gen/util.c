@@ -1,0 +1,143 @@
+/* util.c: arena, strings, files and diagnostics. */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gen.h"
+
+Diag diag;
+
+void *arena_alloc(size_t n) {
+    void *p = calloc(1, n ? n : 1);
+    if (!p)
+        die("out of memory (%zu bytes)", n);
+    return p;
+}
+
+char *arena_strndup(const char *s, size_t n) {
+    char *p = arena_alloc(n + 1);
+    memcpy(p, s, n);
+    return p;
+}
+
+char *arena_strdup(const char *s) { return arena_strndup(s, strlen(s)); }
+
+char *format(const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    char *p = arena_alloc((size_t)n + 1);
+    va_start(ap, fmt);
+    vsnprintf(p, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    return p;
+}
+
+char *read_file(const char *path, size_t *len) {
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    size_t cap = 4096, n = 0;
+    char *buf = malloc(cap);
+    for (;;) {
+        if (n + 1 >= cap) {
+            cap *= 2;
+            buf = realloc(buf, cap);
+            if (!buf)
+                die("out of memory reading %s", path);
+        }
+        size_t k = fread(buf + n, 1, cap - n - 1, f);
+        if (k == 0)
+            break;
+        n += k;
+    }
+    bool bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(buf);
+        return NULL;
+    }
+    buf[n] = '\0';
+    char *p = arena_strndup(buf, n);
+    free(buf);
+    if (len)
+        *len = n;
+    return p;
+}
+
+void vec_push(Vec *v, void *p) {
+    if (v->len == v->cap) {
+        int cap = v->cap ? 2 * v->cap : 8;
+        void **d = arena_alloc(sizeof(void *) * (size_t)cap);
+        if (v->len)
+            memcpy(d, v->data, sizeof(void *) * (size_t)v->len);
+        v->data = d;
+        v->cap = cap;
+    }
+    v->data[v->len++] = p;
+}
+
+/* Prints "path:line:col: KIND: message", the source line and a caret. */
+static void vreport(SrcPos pos, const char *kind, const char *fmt, va_list ap) {
+    FILE *out = diag.out ? diag.out : stderr;
+    if (!pos.file) {
+        fprintf(out, "wdc: %s: ", kind);
+        vfprintf(out, fmt, ap);
+        fputc('\n', out);
+        return;
+    }
+    fprintf(out, "%s:%d:%d: %s: ", pos.file->path, pos.line, pos.col, kind);
+    vfprintf(out, fmt, ap);
+    fputc('\n', out);
+    const char *p = pos.file->text;
+    for (int l = 1; l < pos.line && *p; p++)
+        if (*p == '\n')
+            l++;
+    const char *e = p;
+    while (*e && *e != '\n' && *e != '\r')
+        e++;
+    fprintf(out, "  %.*s\n  ", (int)(e - p), p);
+    for (int i = 1; i < pos.col && p + i - 1 < e; i++)
+        fputc(p[i - 1] == '\t' ? '\t' : ' ', out);
+    fputs("^\n", out);
+    for (SrcFile *f = pos.file; f->includer; f = f->includer)
+        fprintf(out, "%s:%d:%d: note: included from here\n", f->includer->path,
+                f->inc_line, f->inc_col);
+}
+
+void error_at(SrcPos pos, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vreport(pos, "error", fmt, ap);
+    va_end(ap);
+    diag.errors++;
+    if (diag.jmp)
+        longjmp(*diag.jmp, 1);
+    exit(1);
+}
+
+void warn_at(SrcPos pos, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vreport(pos, "warning", fmt, ap);
+    va_end(ap);
+    diag.warnings++;
+}
+
+void note_at(SrcPos pos, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vreport(pos, "note", fmt, ap);
+    va_end(ap);
+}
+
+void die_(const char *file, int line, const char *fmt, ...) {
+    va_list ap;
+    fprintf(stderr, "wdc: internal error at %s:%d: ", file, line);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+    exit(3);
+}

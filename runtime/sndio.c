@@ -1,0 +1,115 @@
+/*
+ * sndio.c - WAV input and output through libsndfile.
+ *
+ * Implements the WAV functions of runtime/wdrt_host.h; the only file that
+ * sees sndfile.h.
+ */
+#include "wdrt_host.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include <sndfile.h>
+
+/* Frames per libsndfile call when writing. */
+#define WDRT_IO_CHUNK 65536
+
+wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
+                           const double *frames, long nframes)
+{
+    if (!path || nch <= 0 || nframes < 0 || (nframes > 0 && !frames) ||
+        !(fs >= 1.0) || fs > 2147483647.0)
+        return WDRT_INVALID_ARGS;
+
+    SF_INFO info = {0};
+    info.samplerate = (int)lround(fs);
+    info.channels = nch;
+    info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
+    if (!sf_format_check(&info))
+        return WDRT_INVALID_ARGS;
+
+    SNDFILE *f = sf_open(path, SFM_WRITE, &info);
+    if (!f) {
+        fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(NULL));
+        return WDRT_IO;
+    }
+    /* Samples are written as they are: no clipping or normalisation. */
+    sf_command(f, SFC_SET_CLIPPING, NULL, SF_FALSE);
+    sf_command(f, SFC_SET_NORM_DOUBLE, NULL, SF_FALSE);
+
+    wdrt_result res = WDRT_OK;
+    long done = 0;
+    while (done < nframes) {
+        long n = nframes - done;
+        if (n > WDRT_IO_CHUNK)
+            n = WDRT_IO_CHUNK;
+        sf_count_t w = sf_writef_double(f, frames + (size_t)done * nch, n);
+        if (w != n) {
+            fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(f));
+            res = WDRT_IO;
+            break;
+        }
+        done += n;
+    }
+    if (sf_close(f) != 0 && res == WDRT_OK)
+        res = WDRT_IO;
+    return res;
+}
+
+wdrt_result wdrt_wav_read(const char *path, int *nch, double *fs,
+                          double **frames, long *nframes)
+{
+    if (!path || !nch || !fs || !frames || !nframes)
+        return WDRT_INVALID_ARGS;
+    *frames = NULL;
+    *nframes = 0;
+    *nch = 0;
+    *fs = 0;
+
+    FILE *probe = fopen(path, "rb");
+    if (!probe) {
+        perror(path);
+        return WDRT_IO;
+    }
+    fclose(probe);
+
+    SF_INFO info = {0};
+    SNDFILE *f = sf_open(path, SFM_READ, &info);
+    if (!f) {
+        fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(NULL));
+        return WDRT_FORMAT;
+    }
+    if (info.channels <= 0 || info.frames < 0) {
+        sf_close(f);
+        return WDRT_FORMAT;
+    }
+    /* Integer formats read as [-1, 1); float files keep their values. */
+    sf_command(f, SFC_SET_NORM_DOUBLE, NULL, SF_TRUE);
+
+    size_t total = (size_t)info.frames * (size_t)info.channels;
+    double *buf = malloc(total > 0 ? total * sizeof *buf : sizeof *buf);
+    if (!buf) {
+        sf_close(f);
+        return WDRT_OUT_OF_MEMORY;
+    }
+    sf_count_t got = 0;
+    while (got < info.frames) {
+        sf_count_t r = sf_readf_double(f, buf + (size_t)got * info.channels,
+                                       info.frames - got);
+        if (r <= 0)
+            break;
+        got += r;
+    }
+    sf_close(f);
+    if (got < info.frames) {
+        free(buf);
+        fprintf(stderr, "wdrt: %s: file ends early\n", path);
+        return WDRT_IO;
+    }
+    *frames = buf;
+    *nframes = (long)got;
+    *nch = info.channels;
+    *fs = (double)info.samplerate;
+    return WDRT_OK;
+}

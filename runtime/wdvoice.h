@@ -1,0 +1,84 @@
+/*
+ * wdvoice.h - the voice ABI shared by voices emitted by wdc and their hosts.
+ *
+ * A voice is a compiled wave-digital model of one physical system.  The host
+ * owns all memory: it allocates `state_size` bytes (aligned for double), then
+ * calls init(state, fs).  A voice never allocates, locks or does I/O.
+ *
+ * Audio buffers are double precision on both sides of the ABI, whatever the
+ * precision the voice computes in (`precision` is 32 or 64 bits); a float
+ * voice converts at its edges.  Units are SI, reported per port and param:
+ * the electrical domain speaks in V, A, ohm; the mechanical one in m/s, N, m.
+ *
+ * This header holds types only.
+ */
+#ifndef WDVOICE_H
+#define WDVOICE_H
+
+#include <stddef.h>
+
+#define WDV_ABI_VERSION 1
+
+/* One audio input or output. */
+typedef struct wdv_port {
+    const char *name; /* as in the netlist (.input NAME / .output NAME) */
+    const char *unit; /* SI unit of the signal, e.g. "V", "m/s", "N" */
+} wdv_port;
+
+/* One control-rate parameter. */
+typedef struct wdv_param {
+    const char *name; /* as in .param */
+    const char *unit; /* unit= of the .param line, or "" */
+    double def;       /* default value */
+    double min;       /* set_param clamps to [min, max] */
+    double max;
+} wdv_param;
+
+/* One initial-condition target: the velocity (or voltage) of a node, or
+ * the displacement (or flux) of a node relative to ground. */
+typedef struct wdv_ic_target {
+    const char *name; /* "v(node)" or "x(node)" */
+    const char *unit;
+} wdv_ic_target;
+
+typedef struct wdv_class {
+    const char *name;   /* voice name: the C prefix of its symbols */
+    int abi_version;    /* WDV_ABI_VERSION at emission */
+    int precision;      /* 64: computes in double, 32: in float */
+    size_t state_size;  /* bytes the host allocates for one instance */
+    int n_inputs;
+    int n_outputs;
+    int n_params;
+    int n_ic_targets;
+    const wdv_port *inputs;
+    const wdv_port *outputs;
+    const wdv_param *params;
+    const wdv_ic_target *ic_targets;
+
+    /* Sets the sample rate (Hz), params to their defaults, and resets.
+     * Real-time safe, but meant for set-up. */
+    void (*init)(void *state, double fs);
+    /* Clears all signal state and applies the netlist's .ic values.
+     * Real-time safe. */
+    void (*reset)(void *state);
+    /* Sets param `id` (clamped to its range); coefficients are recomputed
+     * at the start of the next process call, only those it affects.
+     * Returns 0, or -1 for an unknown id.  Real-time safe. */
+    int (*set_param)(void *state, int id, double value);
+    double (*get_param)(const void *state, int id);
+    /* Renders nframes: in[k][n] for input k, out[k][n] for output k.
+     * Real-time safe: no allocation, no locks, no I/O, bounded time. */
+    void (*process)(void *state, const double *const *in, double *const *out,
+                    int nframes);
+    /* Energy stored in the reactances now, in J (or its electrical analog). */
+    double (*energy)(const void *state);
+    /* Work done on the network by its sources since reset, in J. */
+    double (*work)(const void *state);
+    /* A strike: sets the named initial conditions (ids into ic_targets)
+     * on top of the present state; reactances the targets do not touch keep
+     * their Kirchhoff state.  Returns 0, or -1 if an id is out of range or
+     * the conditions cannot all hold.  Real-time safe (bounded solve). */
+    int (*set_ic)(void *state, int n, const int *ids, const double *values);
+} wdv_class;
+
+#endif

@@ -1,0 +1,60 @@
+#!/bin/sh
+# demo.sh - compiles every example netlist and renders it to out/.
+#
+# For each netlists/*.wdn: `bin/wdc FILE -o out` emits out/NAME.c and
+# out/NAME.h, then `bin/wdc FILE --render out/NAME.wav --seconds 2` renders
+# two seconds, driven by an input that suits the netlist: an impulse for a
+# mechanical system (a tap), white noise for a circuit (its filtering is
+# what one hears), and no input at all for a netlist without `.input`.
+# Prints one line per netlist; stops with non-zero status at the first
+# failure.
+#
+# Usage: sh scripts/demo.sh     (or: make demo, which builds bin/wdc first)
+
+set -u
+
+cd "$(dirname "$0")/.." || exit 1
+
+WDC=bin/wdc
+OUT=out
+SECONDS_=2
+
+[ -x "$WDC" ] || { echo "demo: $WDC is not built (run make)" >&2; exit 1; }
+mkdir -p "$OUT" || exit 1
+
+# The input SPEC for one netlist (empty: the netlist has no input).
+input_for() {
+    grep -q '^[[:space:]]*\.input[[:space:]]' "$1" || return 0
+    case "$(basename "$1" .wdn)" in
+    tonestack) echo "sine:220:0.5" ;; # a tone shows the EQ's colouring
+    *)
+        if grep -q '^[[:space:]]*\.domain[[:space:]][[:space:]]*mechanical' "$1"
+        then echo "impulse"
+        else echo "noise:0.5"
+        fi ;;
+    esac
+}
+
+n=0
+for f in netlists/*.wdn; do
+    [ -e "$f" ] || { echo "demo: no netlists in netlists/" >&2; exit 1; }
+    name=$(basename "$f" .wdn)
+    wav="$OUT/$name.wav"
+    spec=$(input_for "$f")
+
+    if ! "$WDC" "$f" -o "$OUT"; then
+        echo "demo: FAILED: $WDC $f -o $OUT" >&2
+        exit 1
+    fi
+    if [ -n "$spec" ]; then
+        "$WDC" "$f" --render "$wav" --seconds "$SECONDS_" --input "$spec"
+    else
+        "$WDC" "$f" --render "$wav" --seconds "$SECONDS_"
+    fi || {
+        echo "demo: FAILED: $WDC $f --render $wav --seconds $SECONDS_${spec:+ --input $spec}" >&2
+        exit 1
+    }
+    echo "demo: $f -> $OUT/ (C) and $wav (${SECONDS_} s, input: ${spec:-none})"
+    n=$((n + 1))
+done
+echo "demo: $n netlists compiled and rendered"

@@ -1,0 +1,102 @@
+#!/bin/sh
+# install-deps.sh - installs what building wdc needs, and nothing else.
+#
+# Checks for a C compiler and for the headers and libraries of libsndfile,
+# LAPACKE and cmocka; installs only the missing Debian packages with
+# apt-get (after one `apt-get update`), through sudo when not root.
+# Exit status: 0 when everything is present afterwards, 1 otherwise.
+#
+# Usage: sh scripts/install-deps.sh      (or: make deps)
+
+set -u
+
+say() { printf 'install-deps: %s\n' "$*"; }
+fail() { printf 'install-deps: error: %s\n' "$*" >&2; exit 1; }
+
+CC_CMD=${CC:-cc}
+TMPDIR_DEPS=$(mktemp -d 2>/dev/null || echo "/tmp/wdc-deps.$$")
+mkdir -p "$TMPDIR_DEPS" || fail "cannot create a temporary directory"
+trap 'rm -rf "$TMPDIR_DEPS"' EXIT INT TERM
+
+have_cc() {
+    command -v "$CC_CMD" >/dev/null 2>&1 || return 1
+    printf 'int main(void) { return 0; }\n' >"$TMPDIR_DEPS/cc.c"
+    "$CC_CMD" "$TMPDIR_DEPS/cc.c" -o "$TMPDIR_DEPS/cc.out" >/dev/null 2>&1
+}
+
+# have_lib HEADER LIB: the header compiles and the library links.  Without
+# a compiler, looks for the header in the usual include directories.
+have_lib() {
+    if have_cc; then
+        printf '#include <%s>\nint main(void) { return 0; }\n' "$1" \
+            >"$TMPDIR_DEPS/t.c"
+        "$CC_CMD" "$TMPDIR_DEPS/t.c" -o "$TMPDIR_DEPS/t.out" "-l$2" \
+            >/dev/null 2>&1
+        return $?
+    fi
+    for d in /usr/include /usr/local/include /usr/include/*-linux-gnu; do
+        [ -f "$d/$1" ] && return 0
+    done
+    return 1
+}
+
+# cmocka.h needs the standard headers it uses included first.
+have_cmocka() {
+    if have_cc; then
+        printf '%s\n' '#include <stdarg.h>' '#include <stddef.h>' \
+            '#include <stdint.h>' '#include <setjmp.h>' \
+            '#include <cmocka.h>' 'int main(void) { return 0; }' \
+            >"$TMPDIR_DEPS/c.c"
+        "$CC_CMD" "$TMPDIR_DEPS/c.c" -o "$TMPDIR_DEPS/c.out" -lcmocka \
+            >/dev/null 2>&1
+        return $?
+    fi
+    have_lib cmocka.h cmocka
+}
+
+missing=""
+if have_cc; then
+    say "C compiler: $CC_CMD works"
+else
+    say "C compiler: $CC_CMD missing or not working"
+    missing="$missing build-essential"
+fi
+if have_lib sndfile.h sndfile; then say "libsndfile: found"
+else say "libsndfile: missing"; missing="$missing libsndfile1-dev"; fi
+if have_lib lapacke.h lapacke; then say "LAPACKE: found"
+else say "LAPACKE: missing"; missing="$missing liblapacke-dev"; fi
+if have_cmocka; then say "cmocka: found"
+else say "cmocka: missing"; missing="$missing libcmocka-dev"; fi
+
+if [ -z "$missing" ]; then
+    say "everything needed is installed"
+    exit 0
+fi
+
+command -v apt-get >/dev/null 2>&1 ||
+    fail "missing:$missing; apt-get is not available, install the equivalent packages with your system's package manager"
+
+if [ "$(id -u)" -eq 0 ]; then
+    SUDO=""
+elif command -v sudo >/dev/null 2>&1; then
+    SUDO="sudo"
+else
+    fail "missing:$missing; not root and sudo is not available: run as root: apt-get install$missing"
+fi
+
+say "running: ${SUDO:+$SUDO }apt-get update"
+$SUDO apt-get update || fail "apt-get update failed"
+say "installing:$missing"
+# shellcheck disable=SC2086 # the package list is meant to split
+$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y $missing ||
+    fail "apt-get install$missing failed"
+
+# Check again: a package may be installed yet not give what is needed.
+still=""
+have_cc || still="$still compiler($CC_CMD)"
+have_lib sndfile.h sndfile || still="$still sndfile.h/-lsndfile"
+have_lib lapacke.h lapacke || still="$still lapacke.h/-llapacke"
+have_cmocka || still="$still cmocka.h/-lcmocka"
+[ -z "$still" ] || fail "still missing after installing:$still"
+say "done: installed$missing"
+exit 0

@@ -1,0 +1,71 @@
+/*
+ * refsim.h - a reference simulator for elaborated circuits.
+ *
+ * Simulates a Circuit (gen.h) by modified nodal analysis with trapezoidal
+ * companion models, independently of the wave-digital structure, so a
+ * voice can be checked against it sample for sample.
+ *
+ * Conventions (the same as a voice's):
+ *   - Every element's current i flows from its n[0] through it to n[1];
+ *     its voltage is v(n[0]) - v(n[1]).
+ *   - E_R: v = R i.  E_C: i[n] = (2C/T)(v[n] - v[n-1]) - i[n-1].
+ *     E_L: v[n] = (2L/T)(i[n] - i[n-1]) - v[n-1].  Element values are those
+ *     of the current sample (after any param change); the Kirchhoff history
+ *     v[n-1], i[n-1] is kept across changes.
+ *   - E_V: v = drive + R i (R = 0 without a value: ideal).
+ *     E_I: i = drive + v/R (no v/R term without a value).
+ *     drive is the source's input sample, or elem_drive() for sources that
+ *     have no input.
+ *   - Sample n = -1 is the initial state: capacitors hold their .ic
+ *     voltage, inductors their .ic current (0 without one), and the rest
+ *     is one resistive solve of the network with each capacitor replaced
+ *     by a voltage source and each inductor by a current source of that
+ *     value, input-driven sources at 0 and constant sources at their value.
+ *     If that network is singular, capacitor currents and inductor voltages
+ *     start at 0 (and node voltages come from a least-norm solve).
+ *   - The first refsim_step() computes sample 0.
+ *   - Probes (Circuit.outs): PR_V is v(n0) - v(n1); PR_I and PR_F the
+ *     element's current (a source's whole current, parallel resistor
+ *     included); PR_X the trapezoidal integral of v(n0) - v(n1), starting
+ *     from the .ic x() values of its nodes.
+ *   - energy: sum of C v^2/2 + L i^2/2 at the last computed sample.
+ *     work: sum over steps of -T * vbar * ibar over the sources, bars
+ *     being averages of this and the previous sample, using the ideal part
+ *     of a resistive source (its drive) for v (V) or i (I).
+ */
+#ifndef REFSIM_H
+#define REFSIM_H
+
+#include "gen.h"
+
+typedef struct refsim refsim;
+
+/* A simulator of `c` at sample rate fs (Hz) with the given param values
+ * (Circuit.nparams of them; NULL: the defaults), at sample -1.  The
+ * Circuit must outlive it.  Returns NULL if out of memory or if the
+ * network cannot be simulated (a loop of ideal voltage sources or a cut
+ * of ideal current sources). */
+refsim *refsim_new(const Circuit *c, double fs, const double *params);
+/* Changes param `id` (clamped to [min, max] as a voice does); it takes
+ * effect from the next step on. */
+void refsim_set_param(refsim *s, int id, double v);
+double refsim_get_param(const refsim *s, int id);
+/* Computes one sample: in[k] is input k (Circuit.ninputs, may be NULL
+ * when there are none), out[k] probe k (Circuit.nouts). */
+void refsim_step(refsim *s, const double *in, double *out);
+/* Stored energy at the last computed sample (sample -1 before any step). */
+double refsim_energy(const refsim *s);
+/* Work done by the sources on the network since sample -1. */
+double refsim_work(const refsim *s);
+/* Samples computed so far. */
+long refsim_time(const refsim *s);
+/* Voltage and current of element e at the last computed sample. */
+double refsim_elem_v(const refsim *s, int e);
+double refsim_elem_i(const refsim *s, int e);
+/* Voltage of graph node `node` (0: ground) at the last computed sample. */
+double refsim_node_v(const refsim *s, int node);
+/* Whether the initial network was singular (see above). */
+int refsim_init_singular(const refsim *s);
+void refsim_free(refsim *s);
+
+#endif
