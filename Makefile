@@ -13,7 +13,7 @@ RT_SRCS    = $(wildcard runtime/*.c)
 TEST_LIB   = $(filter-out tests/test_%.c,$(wildcard tests/*.c))
 TEST_SRCS  = $(wildcard tests/test_*.c)
 
-GEN_OBJS   = $(GEN_SRCS:%.c=build/%.o)
+GEN_OBJS   = $(GEN_SRCS:%.c=build/%.o) build/gen/templates.o
 RT_OBJS    = $(RT_SRCS:%.c=build/%.o)
 TLIB_OBJS  = $(TEST_LIB:%.c=build/%.o)
 TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
@@ -24,6 +24,14 @@ all: bin/wdc
 build/%.o: %.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -Iruntime -Igen -c $< -o $@
+
+build/gen/templates.c: templates/voice.c.tmpl templates/voice.h.tmpl runtime/wdvoice.h scripts/embed.sh
+	@mkdir -p $(dir $@)
+	sh scripts/embed.sh $@ tmpl_voice_c=templates/voice.c.tmpl tmpl_voice_h=templates/voice.h.tmpl \
+		tmpl_wdvoice_h=runtime/wdvoice.h
+
+build/gen/templates.o: build/gen/templates.c
+	$(CC) $(CFLAGS) -c $< -o $@
 
 build/libwdc.a: $(GEN_OBJS)
 	ar rcs $@ $^

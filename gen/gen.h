@@ -84,6 +84,7 @@ typedef struct Vec {
     int cap;
 } Vec;
 void vec_push(Vec *v, void *p);
+int mkdir_p(const char *path);
 
 /* lex.c */
 

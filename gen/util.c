@@ -1,5 +1,6 @@
 /* util.c: arena, strings, files and diagnostics. */
 #include <errno.h>
+#include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -140,4 +141,19 @@ void die_(const char *file, int line, const char *fmt, ...) {
     va_end(ap);
     fputc('\n', stderr);
     exit(3);
+}
+
+/* Creates a directory and its parents, like mkdir -p. */
+int mkdir_p(const char *path) {
+    char *p = arena_strdup(path);
+    for (char *s = p + 1; *s; s++)
+        if (*s == '/') {
+            *s = 0;
+            if (mkdir(p, 0777) != 0 && errno != EEXIST)
+                return -1;
+            *s = '/';
+        }
+    if (mkdir(p, 0777) != 0 && errno != EEXIST)
+        return -1;
+    return 0;
 }

@@ -1,0 +1,702 @@
+/* emit.c: Wdf -> C text of a voice, through the templates in templates/.
+ *
+ * Code is generated into memory: each template hole ({{name}}) is filled
+ * from a table of strings built here, and the files are written only once
+ * all of it succeeded.  The sample loop is straight-line code: a forward
+ * pass computing the waves each subtree reflects towards the root, the
+ * root's matrix, and a backward pass sending waves down to the leaves. */
+#include <math.h>
+#include <string.h>
+
+#include "gen.h"
+
+extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[];
+
+typedef struct Buf {
+    char *s;
+    size_t len, cap;
+} Buf;
+
+static void emit(Buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void emit(Buf *b, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (b->len + (size_t)n + 1 > b->cap) {
+        size_t cap = (b->cap + (size_t)n + 1) * 2;
+        char *s = arena_alloc(cap);
+        if (b->len)
+            memcpy(s, b->s, b->len);
+        b->s = s;
+        b->cap = cap;
+    }
+    va_start(ap, fmt);
+    vsnprintf(b->s + b->len, (size_t)n + 1, fmt, ap);
+    va_end(ap);
+    b->len += (size_t)n;
+}
+
+static const char *str(Buf *b) { return b->s ? b->s : ""; }
+
+/* ---- emission context ---- */
+
+typedef struct Ctx {
+    const Wdf *w;
+    const Circuit *c;
+    bool single;
+    int *react;      /* tree node -> reactance index or -1 */
+    int *koff;       /* tree node -> first coefficient in c_k */
+    int nk, nreact;
+    int *src;        /* element -> source index or -1 */
+    int nsrc;
+    int *rootrow;    /* element of an ideal source -> its root edge */
+    const char **b;  /* tree node -> C expression of its reflected wave */
+    const char **bpost; /* the same after the backward pass */
+    const char **a;  /* tree node -> C expression of its incident wave */
+} Ctx;
+
+static const char *lit(Ctx *x, double v) {
+    char *s = format("%.17g", v);
+    if (!strpbrk(s, ".eni"))
+        s = format("%s.0", s);
+    if (x->single)
+        s = format("%sf", s);
+    return v < 0 ? format("(%s)", s) : s;
+}
+
+/* C text of an elaborated expression over p[]. */
+static const char *cexpr(Ctx *x, const Expr *e) {
+    static const char *ops = "+-*/";
+    switch (e->kind) {
+    case EX_NUM: return format("%.17g", e->num);
+    case EX_PARAM: return format("p[%d]", e->param);
+    case EX_NEG: return format("(-%s)", cexpr(x, e->a));
+    case EX_ADD: case EX_SUB: case EX_MUL: case EX_DIV:
+        return format("(%s %c %s)", cexpr(x, e->a), ops[e->kind - EX_ADD], cexpr(x, e->b));
+    case EX_POW: return format("pow(%s, %s)", cexpr(x, e->a), cexpr(x, e->b));
+    case EX_CALL: {
+        const char *f = fn_name(e->fn);
+        if (e->fn == FN_ABS) f = "fabs";
+        if (e->fn == FN_MIN) f = "fmin";
+        if (e->fn == FN_MAX) f = "fmax";
+        if (e->b)
+            return format("%s(%s, %s)", f, cexpr(x, e->a), cexpr(x, e->b));
+        return format("%s(%s)", f, cexpr(x, e->a));
+    }
+    case EX_NAME: break;
+    }
+    unreachable();
+}
+
+static bool is_zero(const char *s) { return !strcmp(s, "0"); }
+
+/* drive of a source element as a per-sample expression */
+static const char *drive_of(Ctx *x, const Elem *e) {
+    if (e->input >= 0)
+        return format("t_in%d", e->input);
+    return format("c_e%d", x->src[e - x->c->elems]);
+}
+
+/* ---- update: coefficients at control rate ---- */
+
+static const char *guard(uint64_t mask) {
+    if (!mask)
+        return "if (full)";
+    return format("if (full || (d & 0x%llxULL))", (unsigned long long)mask);
+}
+
+static void emit_update(Ctx *x, Buf *o) {
+    const Circuit *c = x->c;
+    for (int i = 0; i < x->w->nnodes; i++) {
+        const WNode *n = x->w->nodes[i];
+        if (n->kind == W_LEAF) {
+            const Elem *e = &c->elems[n->elem];
+            const char *v = format("pos(%s)", cexpr(x, e->val));
+            emit(o, "    %s /* %s (%s:%d:%d) */\n", guard(n->pmask), e->name, e->pos.file->path,
+                 e->pos.line, e->pos.col);
+            if (e->kind == E_C)
+                emit(o, "        retune(st, %d, %d, T / (2 * %s));\n", n->id, x->react[n->id], v);
+            else if (e->kind == E_L)
+                emit(o, "        retune(st, %d, %d, 2 * %s / T);\n", n->id, x->react[n->id], v);
+            else
+                emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, v);
+            continue;
+        }
+        emit(o, "    %s { /* %s adaptor */\n        double t = 0;\n", guard(n->pmask),
+             n->kind == W_SERIES ? "series" : "parallel");
+        for (int k = 0; k < n->nchild; k++)
+            emit(o, n->kind == W_SERIES ? "        t += st->c_R[%d];\n" : "        t += 1.0 / st->c_R[%d];\n",
+                 n->child[k]->id);
+        emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id, n->kind == W_SERIES ? "t" : "1.0 / t");
+        for (int k = 0; k < n->nchild; k++)
+            emit(o, n->kind == W_SERIES ? "        st->c_k[%d] = (real)(st->c_R[%d] / t);\n"
+                                        : "        st->c_k[%d] = (real)(1.0 / st->c_R[%d] / t);\n",
+                 x->koff[n->id] + k, n->child[k]->id);
+        emit(o, "    }\n");
+    }
+    emit(o, "    %s\n        root_solve(st);\n", guard(x->w->root.pmask));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        if (x->src[i] >= 0 && e->input < 0)
+            emit(o, "    %s /* %s */\n        st->c_e[%d] = (real)(%s);\n", guard(expr_params(e->drive)),
+                 e->name, x->src[i], cexpr(x, e->drive));
+    }
+}
+
+/* ---- the sample loop ---- */
+
+static void emit_forward(Ctx *x, Buf *o) {
+    const Circuit *c = x->c;
+    emit(o, "        /* forward: waves reflected towards the root */\n");
+    for (int i = 0; i < x->w->nnodes; i++) {
+        const WNode *n = x->w->nodes[i];
+        if (n->kind == W_LEAF) {
+            const Elem *e = &c->elems[n->elem];
+            switch (e->kind) {
+            case E_R: x->b[i] = "0"; break;
+            case E_C: x->b[i] = format("s_a%d", x->react[i]); break;
+            case E_L:
+                emit(o, "        const real t_b%d = -s_a%d; /* %s */\n", i, x->react[i], e->name);
+                x->b[i] = format("t_b%d", i);
+                break;
+            case E_V: x->b[i] = drive_of(x, e); break;
+            case E_I:
+                emit(o, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
+                x->b[i] = format("t_b%d", i);
+                break;
+            }
+            continue;
+        }
+        Buf t = {0};
+        for (int k = 0; k < n->nchild; k++) {
+            const char *bc = x->b[n->child[k]->id];
+            if (is_zero(bc))
+                continue;
+            const char *sg = n->pol[k] > 0 ? (t.len ? " + " : "") : (t.len ? " - " : "-");
+            if (n->kind == W_SERIES)
+                emit(&t, "%s%s", sg, bc);
+            else
+                emit(&t, "%sc_k%d * %s", sg, x->koff[i] + k, bc);
+        }
+        if (!t.len) {
+            x->b[i] = "0";
+            continue;
+        }
+        emit(o, "        const real t_b%d = %s;\n", i, str(&t));
+        x->b[i] = format("t_b%d", i);
+    }
+}
+
+/* input j of the root: b of a port or the drive of a source */
+static const char *root_in(Ctx *x, int j) {
+    const RootEdge *e = &x->w->root.edge[j];
+    return e->kind == 0 ? x->b[e->node->id] : drive_of(x, &x->c->elems[e->elem]);
+}
+
+static void emit_root(Ctx *x, Buf *o) {
+    const Root *r = &x->w->root;
+    emit(o, "        /* root */\n");
+    for (int k = 0; k < r->nedge; k++) {
+        Buf t = {0};
+        for (int j = 0; j < r->nedge; j++) {
+            const char *in = root_in(x, j);
+            if (!is_zero(in))
+                emit(&t, "%sm_%d_%d * %s", t.len ? " + " : "", k, j, in);
+        }
+        const char *v = t.len ? str(&t) : lit(x, 0);
+        if (r->edge[k].kind == 0) {
+            emit(o, "        const real t_a%d = %s;\n", r->edge[k].node->id, v);
+            x->a[r->edge[k].node->id] = format("t_a%d", r->edge[k].node->id);
+        } else {
+            emit(o, "        const real t_r%d = %s; /* %s of %s */\n", k, v,
+                 r->edge[k].kind == 1 ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
+        }
+    }
+}
+
+static void emit_backward(Ctx *x, Buf *o) {
+    emit(o, "        /* backward: waves sent to the leaves */\n");
+    for (int i = x->w->nnodes - 1; i >= 0; i--) {
+        const WNode *n = x->w->nodes[i];
+        const char *a = x->a[i], *b = x->b[i];
+        if (n->kind == W_LEAF) {
+            const Elem *e = &x->c->elems[n->elem];
+            x->bpost[i] = b;
+            if (e->kind == E_C || e->kind == E_L) {
+                int r = x->react[i];
+                emit(o, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
+                x->bpost[i] = format("s_b%d", r);
+            } else {
+                emit(o, "        (void)%s; /* %s */\n", a, e->name);
+            }
+            continue;
+        }
+        if (n->kind == W_SERIES) {
+            emit(o, "        const real t_d%d = %s%s%s;\n", i, a, is_zero(b) ? "" : " - ", is_zero(b) ? "" : b);
+            for (int k = 0; k < n->nchild; k++) {
+                int cid = n->child[k]->id;
+                const char *bc = x->b[cid];
+                emit(o, "        const real t_a%d = %s%s%sc_k%d * t_d%d;\n", cid, is_zero(bc) ? "" : bc,
+                     n->pol[k] > 0 ? (is_zero(bc) ? "" : " + ") : (is_zero(bc) ? "-" : " - "), "",
+                     x->koff[i] + k, i);
+                x->a[cid] = format("t_a%d", cid);
+            }
+        } else {
+            emit(o, "        const real t_s%d = %s%s%s;\n", i, a, is_zero(b) ? "" : " + ", is_zero(b) ? "" : b);
+            for (int k = 0; k < n->nchild; k++) {
+                int cid = n->child[k]->id;
+                const char *bc = x->b[cid];
+                emit(o, "        const real t_a%d = %st_s%d%s%s;\n", cid, n->pol[k] > 0 ? "" : "-", i,
+                     is_zero(bc) ? "" : " - ", is_zero(bc) ? "" : bc);
+                x->a[cid] = format("t_a%d", cid);
+            }
+        }
+    }
+}
+
+/* voltage (n0 - n1) and current (n0 -> n1) of an element after the pass */
+static const char *elem_v(Ctx *x, int ei) {
+    const Elem *e = &x->c->elems[ei];
+    WNode *n = x->w->leaf_of[ei];
+    if (n) {
+        const char *b = x->bpost[n->id];
+        return is_zero(b) ? format("%s * t_a%d", lit(x, 0.5), n->id)
+                          : format("%s * (t_a%d + %s)", lit(x, 0.5), n->id, b);
+    }
+    for (int k = 0; k < x->w->root.nedge; k++)
+        if (x->w->root.edge[k].elem == ei)
+            return e->kind == E_V ? drive_of(x, e) : format("t_r%d", k);
+    unreachable();
+}
+
+static const char *elem_i(Ctx *x, int ei) {
+    const Elem *e = &x->c->elems[ei];
+    WNode *n = x->w->leaf_of[ei];
+    if (n) {
+        const char *b = x->bpost[n->id];
+        return is_zero(b) ? format("k_g%d * t_a%d", n->id, n->id)
+                          : format("k_g%d * (t_a%d - %s)", n->id, n->id, b);
+    }
+    for (int k = 0; k < x->w->root.nedge; k++)
+        if (x->w->root.edge[k].elem == ei)
+            return e->kind == E_I ? drive_of(x, e) : format("t_r%d", k);
+    unreachable();
+}
+
+static const char *node_v(Ctx *x, int node) {
+    if (node == 0)
+        return NULL;
+    Buf t = {0};
+    for (int k = 0; k < x->w->pathlen[node]; k++) {
+        int ei = x->w->path[node][2 * k], sg = x->w->path[node][2 * k + 1];
+        emit(&t, "%s(%s)", sg > 0 ? (k ? " + " : "") : (k ? " - " : "-"), elem_v(x, ei));
+    }
+    return str(&t);
+}
+
+static const char *pair_v(Ctx *x, const int *n) {
+    const char *a = node_v(x, n[0]), *b = node_v(x, n[1]);
+    if (!a && !b)
+        return lit(x, 0);
+    if (!b)
+        return a;
+    if (!a)
+        return format("-(%s)", b);
+    return format("(%s) - (%s)", a, b);
+}
+
+static void emit_outputs(Ctx *x, Buf *o) {
+    const Circuit *c = x->c;
+    int xp = 0;
+    emit(o, "        /* outputs */\n");
+    for (int k = 0; k < c->nouts; k++) {
+        const Probe *p = &c->outs[k];
+        switch (p->kind) {
+        case PR_V: emit(o, "        out[%d][n] = (double)(%s);\n", k, pair_v(x, p->n)); break;
+        case PR_I: case PR_F: emit(o, "        out[%d][n] = (double)(%s);\n", k, elem_i(x, p->elem)); break;
+        case PR_X:
+            emit(o, "        {\n            const real t_v = %s;\n", pair_v(x, p->n));
+            emit(o, "            s_x%d += k_hT * (t_v + s_xv%d);\n            s_xv%d = t_v;\n", xp, xp, xp);
+            emit(o, "            out[%d][n] = (double)s_x%d;\n        }\n", k, xp);
+            xp++;
+            break;
+        }
+    }
+}
+
+/* work done by the sources, trapezoidal averages: W += -T (e+e')(i+i')/4 */
+static void emit_work(Ctx *x, Buf *o) {
+    const Circuit *c = x->c;
+    if (!x->nsrc)
+        return;
+    emit(o, "        /* work of the sources */\n");
+    for (int i = 0; i < c->nelems; i++) {
+        int s = x->src[i];
+        if (s < 0)
+            continue;
+        const Elem *e = &c->elems[i];
+        const char *dr = drive_of(x, e), *other = e->kind == E_V ? elem_i(x, i) : elem_v(x, i);
+        emit(o, "        {\n            const real t_o = %s;\n", other);
+        emit(o, "            s_work += k_qT * (double)(%s + s_we%d) * (double)(t_o + s_wi%d);\n", dr, s, s);
+        emit(o, "            s_we%d = %s;\n            s_wi%d = t_o;\n        }\n", s, dr, s);
+    }
+}
+
+/* ---- hoisting and write-back ---- */
+
+static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
+    const Circuit *c = x->c;
+    const Root *r = &x->w->root;
+    emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
+    emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
+    emit(wb, "    st->s_work = s_work;\n");
+    for (int i = 0; i < c->ninputs; i++)
+        emit(o, "    const double *const in%d = in[%d];\n", i, i);
+    for (int i = 0; i < x->nk; i++)
+        emit(o, "    const real c_k%d = st->c_k[%d];\n    (void)c_k%d;\n", i, i, i);
+    for (int k = 0; k < r->nedge; k++)
+        for (int j = 0; j < r->nedge; j++)
+            emit(o, "    const real m_%d_%d = st->c_M[%d];\n    (void)m_%d_%d;\n", k, j, k * r->nedge + j, k, j);
+    for (int i = 0; i < x->w->nnodes; i++) {
+        emit(o, "    const real k_R%d = st->c_R[%d], k_g%d = (real)(0.5 / st->c_R[%d]);\n", i, i, i, i);
+        emit(o, "    (void)k_R%d;\n    (void)k_g%d;\n", i, i);
+    }
+    for (int i = 0; i < c->nelems; i++)
+        if (x->src[i] >= 0 && c->elems[i].input < 0)
+            emit(o, "    const real c_e%d = st->c_e[%d];\n    (void)c_e%d;\n", x->src[i], x->src[i], x->src[i]);
+    for (int r2 = 0; r2 < x->nreact; r2++) {
+        emit(o, "    real s_a%d = st->s_a[%d], s_b%d = st->s_b[%d];\n", r2, r2, r2, r2);
+        emit(wb, "    st->s_a[%d] = flush(s_a%d);\n    st->s_b[%d] = flush(s_b%d);\n", r2, r2, r2, r2);
+    }
+    int xp = 0;
+    for (int k = 0; k < c->nouts; k++)
+        if (c->outs[k].kind == PR_X) {
+            emit(o, "    real s_x%d = st->s_x[%d], s_xv%d = st->s_xv[%d];\n", xp, xp, xp, xp);
+            emit(wb, "    st->s_x[%d] = s_x%d;\n    st->s_xv[%d] = flush(s_xv%d);\n", xp, xp, xp, xp);
+            xp++;
+        }
+    for (int s = 0; s < x->nsrc; s++) {
+        emit(o, "    real s_we%d = st->s_we[%d], s_wi%d = st->s_wi[%d];\n", s, s, s, s);
+        emit(wb, "    st->s_we[%d] = s_we%d;\n    st->s_wi[%d] = s_wi%d;\n", s, s, s, s);
+    }
+}
+
+/* ---- reset, initial conditions, energy ---- */
+
+static int x_probes(const Circuit *c) {
+    int n = 0;
+    for (int k = 0; k < c->nouts; k++)
+        n += c->outs[k].kind == PR_X;
+    return n;
+}
+
+static const char *ic_node_value(Ctx *x, char fn, int node) {
+    if (node == 0)
+        return "0";
+    for (int i = 0; i < x->c->nics; i++)
+        if (x->c->ics[i].fn == fn && x->c->ics[i].node == node)
+            return format("(%s)", cexpr(x, x->c->ics[i].val));
+    return "0";
+}
+
+static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
+    const Circuit *c = x->c;
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        WNode *n = x->w->leaf_of[i];
+        if (e->ic && n)
+            emit(o, "    react[%d] = %s; /* %s */\n", x->react[n->id], cexpr(x, e->ic), e->name);
+        if (x->src[i] >= 0 && e->input < 0)
+            emit(o, "    st->s_we[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
+    }
+    int xp = 0;
+    for (int k = 0; k < c->nouts; k++) {
+        const Probe *p = &c->outs[k];
+        if (p->kind != PR_X)
+            continue;
+        emit(o, "    st->s_x[%d] = (real)(%s - %s);\n", xp, ic_node_value(x, 'x', p->n[0]),
+             ic_node_value(x, 'x', p->n[1]));
+        emit(probes, "        st->s_xv[%d] = (real)((%s) - (%s));\n", xp,
+             p->n[0] ? format("x[%d]", p->n[0] - 1) : "0", p->n[1] ? format("x[%d]", p->n[1] - 1) : "0");
+        xp++;
+    }
+    emit(o, "    settle(st, react);\n");
+}
+
+static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
+    for (int i = 0; i < x->w->nnodes; i++) {
+        int r = x->react[i];
+        if (r < 0)
+            continue;
+        bool cap = x->c->elems[x->w->nodes[i]->elem].kind == E_C;
+        emit(kirch, "    react[%d] = %s;\n", r,
+             cap ? format("0.5 * (st->s_a[%d] + st->s_b[%d])", r, r)
+                 : format("0.5 * (st->s_a[%d] - st->s_b[%d]) / st->c_R[%d]", r, r, i));
+        if (cap)
+            emit(o, "    { double v = 0.5 * (st->s_a[%d] + st->s_b[%d]); E += 0.25 / (st->fs * st->c_R[%d]) * v * v; }\n",
+                 r, r, i);
+        else
+            emit(o, "    { double i = 0.5 * (st->s_a[%d] - st->s_b[%d]) / st->c_R[%d]; E += 0.25 * st->c_R[%d] / st->fs * i * i; }\n",
+                 r, r, i, i);
+    }
+}
+
+/* strike targets: v(node) sets capacitors from node to ground, x(node)
+ * sets inductors from node to ground and the node's displacement probes */
+static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
+    const Circuit *c = x->c;
+    int id = 0;
+    for (int nd = 1; nd < c->nnodes; nd++)
+        for (int f = 0; f < 2; f++, id++) {
+            char fn = f ? 'x' : 'v';
+            emit(targets, "%s{\"%c(%s)\", \"%s\"}", id ? ", " : "", fn, c->nodes[nd], domain_unit(c->domain, fn));
+            emit(cases, "        case %d: /* %c(%s) */\n", id, fn, c->nodes[nd]);
+            for (int i = 0; i < x->w->nnodes; i++) {
+                const WNode *n = x->w->nodes[i];
+                if (x->react[i] < 0)
+                    continue;
+                const Elem *e = &c->elems[n->elem];
+                int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
+                if (!sg || (e->kind == E_C) != (fn == 'v'))
+                    continue;
+                if (e->kind == E_C)
+                    emit(cases, "            react[%d] = %s values[k];\n", x->react[i], sg > 0 ? "" : "-");
+                else
+                    emit(cases, "            react[%d] = %s values[k] / (0.5 * st->c_R[%d] / st->fs);\n",
+                         x->react[i], sg > 0 ? "" : "-", i);
+            }
+            int xp = 0;
+            for (int k = 0; k < c->nouts; k++)
+                if (c->outs[k].kind == PR_X) {
+                    if (fn == 'x' && c->outs[k].n[0] == nd && c->outs[k].n[1] == 0)
+                        emit(cases, "            st->s_x[%d] = (real)values[k];\n", xp);
+                    xp++;
+                }
+            emit(cases, "            break;\n");
+        }
+}
+
+/* ---- tables and descriptors ---- */
+
+static const char *c_string(const char *s) {
+    Buf b = {0};
+    emit(&b, "\"");
+    for (; *s; s++)
+        emit(&b, *s == '"' || *s == '\\' ? "\\%c" : "%c", *s);
+    emit(&b, "\"");
+    return str(&b);
+}
+
+static const char *descriptors(Ctx *x, char which) {
+    const Circuit *c = x->c;
+    Buf b = {0};
+    emit(&b, "{");
+    int n = which == 'i' ? c->ninputs : which == 'o' ? c->nouts : c->nparams;
+    for (int i = 0; i < n; i++) {
+        if (which == 'i') {
+            const Elem *drv = NULL;
+            for (int k = 0; k < c->nelems; k++)
+                if (c->elems[k].input == i)
+                    drv = &c->elems[k];
+            char fn = drv && drv->kind == E_I ? 'i' : 'v';
+            emit(&b, "%s{%s, \"%s\"}", i ? ", " : "", c_string(c->inputs[i]), domain_unit(c->domain, fn));
+        } else if (which == 'o') {
+            const Probe *p = &c->outs[i];
+            char fn = p->kind == PR_V ? 'v' : p->kind == PR_X ? 'x' : 'i';
+            emit(&b, "%s{%s, \"%s\"}", i ? ", " : "", c_string(p->name), domain_unit(c->domain, fn));
+        } else {
+            const Param *p = &c->params[i];
+            emit(&b, "%s{%s, %s, %.17g, %s, %s}", i ? ", " : "", c_string(p->name), c_string(p->unit), p->def,
+                 isfinite(p->min) ? format("%.17g", p->min) : "-1e308",
+                 isfinite(p->max) ? format("%.17g", p->max) : "1e308");
+        }
+    }
+    if (n == 0)
+        emit(&b, which == 'p' ? "{\"\", \"\", 0, 0, 0}" : "{\"\", \"\"}");
+    emit(&b, "}");
+    return str(&b);
+}
+
+static const char *root_table(Ctx *x) {
+    const Root *r = &x->w->root;
+    Buf b = {0};
+    emit(&b, "{");
+    for (int k = 0; k < r->nedge; k++) {
+        const RootEdge *e = &r->edge[k];
+        emit(&b, "%s{%d, %d, %d, %d}", k ? ", " : "", e->kind, e->p, e->q, e->kind == 0 ? e->node->id : -1);
+    }
+    emit(&b, "}");
+    return str(&b);
+}
+
+static const char *ic_table(Ctx *x, int *nv) {
+    const Circuit *c = x->c;
+    Buf b = {0};
+    emit(&b, "{");
+    *nv = 0;
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        WNode *n = x->w->leaf_of[i];
+        int kind;
+        switch (e->kind) {
+        case E_R: kind = 0; break;
+        case E_C: kind = 1; break;
+        case E_L: kind = 2; break;
+        case E_V: kind = e->val ? 5 : 3; break;
+        case E_I: kind = e->val ? 6 : 4; break;
+        default: unreachable();
+        }
+        *nv += kind == 1 || kind == 3;
+        emit(&b, "%s{%d, %d, %d, %d, %d, %d}", i ? ", " : "", kind, e->n[0], e->n[1], n ? n->id : -1,
+             n ? x->react[n->id] : -1, x->src[i]);
+    }
+    emit(&b, "}");
+    return str(&b);
+}
+
+static const char *state_fields(Ctx *x, int nd) {
+    const Circuit *c = x->c;
+    const char *r = format("%s_real", c->name);
+    int nx = x_probes(c), ne = x->w->root.nedge;
+#define M1(n) ((n) > 0 ? (n) : 1)
+    return format(
+        "    double p[%d];          /* param values */\n"
+        "    unsigned long long dirty; /* params changed since the last coefficient update */\n"
+        "    double fs;             /* sample rate, Hz */\n"
+        "    %s c_R[%d];     /* port resistance of each tree node */\n"
+        "    %s c_k[%d];     /* adaptor coefficients */\n"
+        "    %s c_M[%d];     /* root adaptor matrix */\n"
+        "    %s c_e[%d];     /* control-rate source drives */\n"
+        "    %s s_a[%d];     /* reactances: last incident wave */\n"
+        "    %s s_b[%d];     /* reactances: last reflected wave */\n"
+        "    %s s_x[%d];     /* displacement probes */\n"
+        "    %s s_xv[%d];    /* displacement probes: last velocity */\n"
+        "    %s s_we[%d];    /* sources: last drive */\n"
+        "    %s s_wi[%d];    /* sources: last current (V) or voltage (I) */\n"
+        "    double s_work;         /* work done by the sources since reset */\n"
+        "    double w_A[%d];        /* solve workspace (control rate only) */\n"
+        "    double w_x[%d];\n"
+        "    int w_piv[%d];",
+        M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, ne * ne, r, M1(x->nsrc), r, M1(x->nreact), r,
+        M1(x->nreact), r, M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), nd * nd, nd, nd);
+#undef M1
+}
+
+/* ---- templates ---- */
+
+typedef struct Hole {
+    const char *name, *text;
+} Hole;
+
+static const char *fill(const char *tmpl, const Hole *holes, int n) {
+    Buf b = {0};
+    for (const char *p = tmpl; *p;) {
+        const char *h = strstr(p, "{{");
+        if (!h) {
+            emit(&b, "%s", p);
+            break;
+        }
+        emit(&b, "%.*s", (int)(h - p), p);
+        const char *e = strstr(h, "}}");
+        if (!e)
+            die("unterminated hole in template");
+        int len = (int)(e - h - 2);
+        const char *text = NULL;
+        for (int i = 0; i < n; i++)
+            if ((int)strlen(holes[i].name) == len && !strncmp(holes[i].name, h + 2, (size_t)len))
+                text = holes[i].text;
+        if (!text)
+            die("template hole '%.*s' has no value", len, h + 2);
+        emit(&b, "%s", text);
+        p = e + 2;
+    }
+    return str(&b);
+}
+
+static int write_text(const char *path, const char *text) {
+    FILE *f = fopen(path, "w");
+    if (!f)
+        return -1;
+    size_t n = strlen(text);
+    bool ok = fwrite(text, 1, n, f) == n;
+    ok = (fclose(f) == 0) && ok;
+    return ok ? 0 : -1;
+}
+
+static void index_tree(Ctx *x) {
+    const Wdf *w = x->w;
+    const Circuit *c = x->c;
+    x->react = arena_alloc(sizeof(int) * (size_t)(w->nnodes + 1));
+    x->koff = arena_alloc(sizeof(int) * (size_t)(w->nnodes + 1));
+    x->b = arena_alloc(sizeof(char *) * (size_t)(w->nnodes + 1));
+    x->bpost = arena_alloc(sizeof(char *) * (size_t)(w->nnodes + 1));
+    x->a = arena_alloc(sizeof(char *) * (size_t)(w->nnodes + 1));
+    for (int i = 0; i < w->nnodes; i++) {
+        const WNode *n = w->nodes[i];
+        x->react[i] = -1;
+        if (n->kind == W_LEAF && (c->elems[n->elem].kind == E_C || c->elems[n->elem].kind == E_L))
+            x->react[i] = x->nreact++;
+        x->koff[i] = x->nk;
+        if (n->kind != W_LEAF)
+            x->nk += n->nchild;
+    }
+    x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    for (int i = 0; i < c->nelems; i++)
+        x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
+}
+
+int emit_voice(const Wdf *w, const EmitOpts *opt) {
+    Ctx x = {.w = w, .c = w->c, .single = opt->single};
+    const Circuit *c = w->c;
+    index_tree(&x);
+    Buf update = {0}, sample = {0}, hoist = {0}, wb = {0}, reset = {0}, probes = {0}, energy = {0},
+        kirch = {0}, targets = {0}, cases = {0};
+    emit_update(&x, &update);
+    for (int i = 0; i < c->ninputs; i++)
+        emit(&sample, "        const real t_in%d = (real)in%d[n];\n", i, i);
+    emit_forward(&x, &sample);
+    emit_root(&x, &sample);
+    emit_backward(&x, &sample);
+    emit_outputs(&x, &sample);
+    emit_work(&x, &sample);
+    emit_hoist(&x, &hoist, &wb);
+    emit_reset(&x, &reset, &probes);
+    emit_energy(&x, &energy, &kirch);
+    emit_ic_cases(&x, &targets, &cases);
+    int nicv;
+    const char *ictab = ic_table(&x, &nicv);
+    int ncore = w->root.ncore + w->root.nv, nicn = c->nnodes - 1 + nicv;
+    int nd = ncore > nicn ? ncore : nicn;
+    const char *real = opt->single ? "float" : "double";
+    const char *options = format("precision %s, rate %g Hz by default", real, c->rate);
+    const char *summary = format("%d elements, %d nodes; %d adaptors and leaves, a root adaptor with %d ports "
+                                 "and %d ideal sources.", c->nelems, c->nnodes, w->nnodes, w->root.nport,
+                                 w->root.nedge - w->root.nport);
+    char *guard = format("WDV_%s_H", c->name);
+    for (char *g = guard; *g; g++)
+        *g = (char)(*g >= 'a' && *g <= 'z' ? *g - 32 : *g);
+    Hole holes[] = {
+        {"name", c->name}, {"version", WDC_VERSION}, {"source", c->path}, {"hash", format("%08x", c->hash)},
+        {"options", options}, {"summary", summary}, {"guard", guard}, {"real", real},
+        {"state_fields", state_fields(&x, nd)}, {"n_params", format("%d", c->nparams)},
+        {"n_root", format("%d", w->root.nedge)}, {"n_core", format("%d", ncore)},
+        {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)}, {"n_v", format("%d", w->root.nv)},
+        {"inputs", descriptors(&x, 'i')}, {"outputs", descriptors(&x, 'o')}, {"params", descriptors(&x, 'p')},
+        {"ic_targets", format("{%s}", str(&targets))}, {"n_ic_targets", format("%d", 2 * (c->nnodes - 1))},
+        {"root_edges", root_table(&x)}, {"ic_elems", ictab}, {"update", str(&update)},
+        {"settle_probes", str(&probes)}, {"n_react_arr", format("%d", x.nreact > 0 ? x.nreact : 1)},
+        {"reset", str(&reset)}, {"energy", str(&energy)}, {"kirchhoff", str(&kirch)},
+        {"ic_cases", str(&cases)}, {"hoist", str(&hoist)}, {"sample", str(&sample)},
+        {"writeback", str(&wb)}, {"precision", opt->single ? "32" : "64"},
+        {"n_inputs", format("%d", c->ninputs)}, {"n_outputs", format("%d", c->nouts)},
+    };
+    int nh = (int)(sizeof holes / sizeof holes[0]);
+    const char *ctext = fill(tmpl_voice_c, holes, nh);
+    const char *htext = fill(tmpl_voice_h, holes, nh);
+    if (write_text(format("%s/%s.c", opt->outdir, c->name), ctext) ||
+        write_text(format("%s/%s.h", opt->outdir, c->name), htext) ||
+        write_text(format("%s/wdvoice.h", opt->outdir), tmpl_wdvoice_h))
+        return -1;
+    return 0;
+}

@@ -1,0 +1,142 @@
+/* scatter.c: scattering matrices of the adaptors, solved with LAPACKE, and
+ * their losslessness.  This is the only file that includes lapacke.h. */
+#include <lapacke.h>
+#include <math.h>
+#include <string.h>
+
+#include "gen.h"
+
+int scatter_root(const Root *r, const double *R, double *M) {
+    int nc = r->ncore, D = nc + r->nv, ne = r->nedge;
+    if (D == 0)
+        die("root without core nodes");
+    double *A = arena_alloc(sizeof(double) * (size_t)(D * D));
+    double *B = arena_alloc(sizeof(double) * (size_t)(D * ne));
+    int *piv = arena_alloc(sizeof(int) * (size_t)D);
+#define AT(i, j) A[(i) * D + (j)]
+#define BT(i, j) B[(i) * ne + (j)]
+    int m = 0;
+    for (int k = 0; k < ne; k++) {
+        const RootEdge *e = &r->edge[k];
+        int p = e->p, q = e->q;
+        if (e->kind == 0) {
+            double G = 1 / R[k];
+            if (p >= 0) { AT(p, p) += G; BT(p, k) += G; }
+            if (q >= 0) { AT(q, q) += G; BT(q, k) -= G; }
+            if (p >= 0 && q >= 0) { AT(p, q) -= G; AT(q, p) -= G; }
+        } else if (e->kind == 1) {
+            int row = nc + m++;
+            if (p >= 0) { AT(p, row) += 1; AT(row, p) += 1; }
+            if (q >= 0) { AT(q, row) -= 1; AT(row, q) -= 1; }
+            BT(row, k) = 1;
+        } else {
+            if (p >= 0) BT(p, k) -= 1;
+            if (q >= 0) BT(q, k) += 1;
+        }
+    }
+    /* a zero pivot is exact singularity; a tiny one relative to the largest
+     * conductance is singular in practice */
+    double amax = 0;
+    for (int i = 0; i < D * D; i++)
+        amax = fmax(amax, fabs(A[i]));
+    double *A0 = arena_alloc(sizeof(double) * (size_t)(D * D));
+    memcpy(A0, A, sizeof(double) * (size_t)(D * D));
+    if (LAPACKE_dgesv(LAPACK_ROW_MAJOR, D, ne, A, D, piv, B, ne) != 0)
+        return -1;
+    for (int i = 0; i < D; i++)
+        if (fabs(AT(i, i)) < 1e-13 * fmax(amax, 1))
+            return -1;
+    m = 0;
+    for (int k = 0; k < ne; k++) {
+        const RootEdge *e = &r->edge[k];
+        for (int j = 0; j < ne; j++) {
+            double vp = e->p >= 0 ? BT(e->p, j) : 0, vq = e->q >= 0 ? BT(e->q, j) : 0;
+            double out;
+            if (e->kind == 0)
+                out = 2 * (vp - vq) - (j == k);
+            else if (e->kind == 1)
+                out = BT(nc + m, j);
+            else
+                out = vp - vq;
+            M[k * ne + j] = out;
+        }
+        if (e->kind == 1)
+            m++;
+    }
+#undef AT
+#undef BT
+    return 0;
+}
+
+void scatter_node(const WNode *n, double *S) {
+    int np = n->nchild + 1;
+    double R[np];
+    int s[np];
+    R[0] = n->R;
+    s[0] = 1;
+    for (int i = 0; i < n->nchild; i++) {
+        R[i + 1] = n->child[i]->R;
+        s[i + 1] = n->pol[i];
+    }
+    double tot = 0;
+    for (int i = 0; i < np; i++)
+        tot += n->kind == W_SERIES ? R[i] : 1 / R[i];
+    for (int k = 0; k < np; k++)
+        for (int j = 0; j < np; j++) {
+            double d = k == j;
+            S[k * np + j] = n->kind == W_SERIES ? d - 2 * s[k] * s[j] * R[k] / tot
+                                                : 2 * s[k] * s[j] / R[j] / tot - d;
+        }
+}
+
+/* max |S^T G S - G| / max G for an n-port with port resistances R */
+static double lossless_err(const double *S, const double *R, int n) {
+    double err = 0, gmax = 0;
+    for (int i = 0; i < n; i++)
+        gmax = fmax(gmax, 1 / R[i]);
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            double acc = 0;
+            for (int k = 0; k < n; k++)
+                acc += S[k * n + i] * S[k * n + j] / R[k];
+            err = fmax(err, fabs(acc - (i == j) / R[i]));
+        }
+    return err / gmax;
+}
+
+double scatter_check(const Wdf *w, double tol) {
+    double worst = 0;
+    for (int i = 0; i < w->nnodes; i++) {
+        const WNode *n = w->nodes[i];
+        if (n->kind == W_LEAF)
+            continue;
+        int np = n->nchild + 1;
+        double *S = arena_alloc(sizeof(double) * (size_t)(np * np));
+        double *R = arena_alloc(sizeof(double) * (size_t)np);
+        scatter_node(n, S);
+        R[0] = n->R;
+        for (int k = 0; k < n->nchild; k++)
+            R[k + 1] = n->child[k]->R;
+        double err = lossless_err(S, R, np);
+        if (err > tol)
+            die("%s adaptor %d is not lossless (error %g)", n->kind == W_SERIES ? "series" : "parallel",
+                n->id, err);
+        if (fabs(S[0]) > tol)
+            die("%s adaptor %d is not adapted at its up port (S00 = %g)",
+                n->kind == W_SERIES ? "series" : "parallel", n->id, S[0]);
+        worst = fmax(worst, err);
+    }
+    const Root *r = &w->root;
+    int np = r->nport, ne = r->nedge;
+    double *S = arena_alloc(sizeof(double) * (size_t)(np * np + 1));
+    double *R = arena_alloc(sizeof(double) * (size_t)(np + 1));
+    for (int k = 0; k < np; k++) {
+        R[k] = r->edge[k].node->R;
+        for (int j = 0; j < np; j++)
+            S[k * np + j] = r->M[k * ne + j];
+    }
+    double err = lossless_err(S, R, np);
+    if (err > tol)
+        die("root adaptor is not lossless (error %g)", err);
+    return fmax(worst, err);
+}

@@ -1,0 +1,320 @@
+/* wdf.c: Circuit -> adaptor tree.
+ *
+ * Every adaptable element (R, C, L, resistive sources) is a leaf whose port
+ * resistance makes it reflection-free or gives it a one-sample memory
+ * (bilinear transform: C -> T/(2C), L -> 2L/T).  Series-parallel reduction
+ * of the element graph then builds adapted series and parallel adaptors
+ * bottom-up: two edges between the same nodes merge in parallel, a node
+ * with exactly two edges merges them in series; chains of the same kind
+ * flatten into one n-port adaptor.  Ideal sources cannot be adapted and are
+ * never merged.  What cannot be reduced further (bridges, non-series-parallel
+ * frames, and every ideal source) is the core: one rigid root adaptor whose
+ * matrix is solved from the core's nodal equations (scatter.c). */
+#include <math.h>
+#include <string.h>
+
+#include "gen.h"
+
+typedef struct Edge {
+    int u, w;     /* oriented u -> w */
+    WNode *node;  /* subtree, or NULL for an ideal source */
+    int src;      /* element index of an ideal source, else -1 */
+    bool alive;
+} Edge;
+
+static bool is_ideal(const Elem *e) { return (e->kind == E_V || e->kind == E_I) && !e->val; }
+
+static double leaf_R(const Circuit *c, const Elem *e, const double *p, double fs) {
+    double v = elem_value(c, e, p);
+    switch (e->kind) {
+    case E_C: return 1 / (2 * fs * v);
+    case E_L: return 2 * fs * v;
+    default: return v;
+    }
+}
+
+static WNode *new_node(WKind k, int u, int w) {
+    WNode *n = arena_alloc(sizeof(WNode));
+    n->kind = k;
+    n->u = u;
+    n->w = w;
+    n->elem = -1;
+    return n;
+}
+
+/* Adds child c with polarity pol to adaptor a, flattening a child of the
+ * same kind into a. */
+static void add_child(WNode *a, WNode *c, int pol, int *cap) {
+    if (c->kind == a->kind) {
+        for (int i = 0; i < c->nchild; i++)
+            add_child(a, c->child[i], pol * c->pol[i], cap);
+        return;
+    }
+    if (a->nchild == *cap) {
+        *cap = *cap ? 2 * *cap : 4;
+        WNode **ch = arena_alloc(sizeof(WNode *) * (size_t)*cap);
+        int *po = arena_alloc(sizeof(int) * (size_t)*cap);
+        if (a->nchild) {
+            memcpy(ch, a->child, sizeof(WNode *) * (size_t)a->nchild);
+            memcpy(po, a->pol, sizeof(int) * (size_t)a->nchild);
+        }
+        a->child = ch;
+        a->pol = po;
+    }
+    a->child[a->nchild] = c;
+    a->pol[a->nchild++] = pol;
+    c->parent = a;
+}
+
+static WNode *combine(WKind k, Edge *e1, int p1, Edge *e2, int p2, int u, int w) {
+    WNode *n = new_node(k, u, w);
+    int cap = 0;
+    add_child(n, e1->node, p1, &cap);
+    add_child(n, e2->node, p2, &cap);
+    double s = 0;
+    for (int i = 0; i < n->nchild; i++) {
+        s += k == W_SERIES ? n->child[i]->R : 1 / n->child[i]->R;
+        n->pmask |= n->child[i]->pmask;
+    }
+    n->R = k == W_SERIES ? s : 1 / s;
+    return n;
+}
+
+/* One parallel merge; returns true if it found one. */
+static bool reduce_parallel(Edge *E, int ne) {
+    for (int i = 0; i < ne; i++) {
+        if (!E[i].alive || !E[i].node)
+            continue;
+        for (int j = i + 1; j < ne; j++) {
+            if (!E[j].alive || !E[j].node)
+                continue;
+            bool same = E[i].u == E[j].u && E[i].w == E[j].w;
+            bool rev = E[i].u == E[j].w && E[i].w == E[j].u;
+            if (!same && !rev)
+                continue;
+            E[i].node = combine(W_PARALLEL, &E[i], 1, &E[j], same ? 1 : -1, E[i].u, E[i].w);
+            E[j].alive = false;
+            return true;
+        }
+    }
+    return false;
+}
+
+/* One series merge at a node with exactly two edges. */
+static bool reduce_series(Edge *E, int ne, int nnodes) {
+    for (int n = 0; n < nnodes; n++) {
+        int cnt = 0, at[3];
+        for (int i = 0; i < ne && cnt < 3; i++)
+            if (E[i].alive && (E[i].u == n || E[i].w == n))
+                at[cnt++] = i;
+        if (cnt != 2)
+            continue;
+        Edge *a = &E[at[0]], *b = &E[at[1]];
+        if (!a->node || !b->node || a->u == a->w || b->u == b->w)
+            continue;
+        int x = a->u == n ? a->w : a->u;
+        int y = b->u == n ? b->w : b->u;
+        if (x == y)
+            continue; /* a parallel pair: left to reduce_parallel */
+        int pa = a->u == x ? 1 : -1; /* a runs x -> n */
+        int pb = b->u == n ? 1 : -1; /* b runs n -> y */
+        a->node = combine(W_SERIES, a, pa, b, pb, x, y);
+        a->u = x;
+        a->w = y;
+        b->alive = false;
+        return true;
+    }
+    return false;
+}
+
+static void number(Wdf *w, WNode *n, Vec *order) {
+    for (int i = 0; i < n->nchild; i++)
+        number(w, n->child[i], order);
+    n->id = order->len;
+    vec_push(order, n);
+}
+
+static void build_root(Wdf *wd, Edge *E, int ne) {
+    Circuit *c = wd->c;
+    Root *r = &wd->root;
+    int *core = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    for (int i = 0; i < c->nnodes; i++)
+        core[i] = -2;
+    r->ref_node = -1;
+    for (int i = 0; i < ne; i++)
+        if (E[i].alive) {
+            core[E[i].u] = core[E[i].w] = -1;
+            if (E[i].u == 0 || E[i].w == 0)
+                r->ref_node = 0;
+            if (r->ref_node < 0)
+                r->ref_node = E[i].u;
+        }
+    r->core_node = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    for (int n = 0; n < c->nnodes; n++)
+        if (core[n] == -1 && n != r->ref_node) {
+            core[n] = r->ncore;
+            r->core_node[r->ncore++] = n;
+        }
+    core[r->ref_node] = -1;
+    r->edge = arena_alloc(sizeof(RootEdge) * (size_t)ne);
+    /* ports first, then V sources, then I sources */
+    for (int pass = 0; pass < 3; pass++)
+        for (int i = 0; i < ne; i++) {
+            if (!E[i].alive)
+                continue;
+            int kind = E[i].node ? 0 : c->elems[E[i].src].kind == E_V ? 1 : 2;
+            if (kind != pass)
+                continue;
+            RootEdge *re = &r->edge[r->nedge++];
+            re->kind = kind;
+            re->node = E[i].node;
+            re->elem = E[i].src;
+            re->p = core[E[i].u];
+            re->q = core[E[i].w];
+            if (kind == 0) {
+                r->nport++;
+                r->pmask |= E[i].node->pmask;
+            }
+            if (kind == 1)
+                r->nv++;
+        }
+    r->M = arena_alloc(sizeof(double) * (size_t)(r->nedge * r->nedge));
+    double *R = arena_alloc(sizeof(double) * (size_t)(r->nport + 1));
+    for (int i = 0; i < r->nport; i++)
+        R[i] = r->edge[i].node->R;
+    if (scatter_root(r, R, r->M) < 0) {
+        Vec names = {0};
+        for (int i = r->nport; i < r->nedge; i++)
+            vec_push(&names, (void *)c->elems[r->edge[i].elem].name);
+        const Elem *e0 = &c->elems[r->edge[r->nport].elem];
+        char *list = "";
+        for (int i = 0; i < names.len; i++)
+            list = format("%s%s'%s'", list, i ? ", " : "", (char *)names.data[i]);
+        error_at(e0->pos, "the ideal sources %s cannot all hold: voltage sources form a loop or "
+                 "current sources a cut-set (give one a series or parallel resistance, R=)", list);
+    }
+}
+
+static void build_paths(Wdf *w) {
+    Circuit *c = w->c;
+    int nn = c->nnodes;
+    int *pe = arena_alloc(sizeof(int) * (size_t)nn), *ps = arena_alloc(sizeof(int) * (size_t)nn);
+    int *from = arena_alloc(sizeof(int) * (size_t)nn), *queue = arena_alloc(sizeof(int) * (size_t)nn);
+    bool *seen = arena_alloc(sizeof(bool) * (size_t)nn);
+    int head = 0, tail = 0;
+    queue[tail++] = 0;
+    seen[0] = true;
+    while (head < tail) {
+        int n = queue[head++];
+        for (int i = 0; i < c->nelems; i++)
+            for (int k = 0; k < 2; k++) {
+                int m = c->elems[i].n[!k];
+                if (c->elems[i].n[k] != n || seen[m])
+                    continue;
+                seen[m] = true;
+                pe[m] = i;
+                ps[m] = k == 1 ? 1 : -1; /* reached n0 from n1: v(n0) = v(n1) + v */
+                from[m] = n;
+                queue[tail++] = m;
+            }
+    }
+    w->path = arena_alloc(sizeof(int *) * (size_t)nn);
+    w->pathlen = arena_alloc(sizeof(int) * (size_t)nn);
+    for (int n = 1; n < nn; n++) {
+        int len = 0;
+        for (int m = n; m != 0; m = from[m])
+            len++;
+        w->path[n] = arena_alloc(sizeof(int) * (size_t)(2 * len));
+        w->pathlen[n] = len;
+        int k = len;
+        for (int m = n; m != 0; m = from[m]) {
+            k--;
+            w->path[n][2 * k] = pe[m];
+            w->path[n][2 * k + 1] = ps[m];
+        }
+    }
+}
+
+Wdf *wdf_build(Circuit *c, double fs) {
+    Wdf *w = arena_alloc(sizeof(Wdf));
+    w->c = c;
+    w->fs = fs;
+    double *p = circuit_defaults(c);
+    Edge *E = arena_alloc(sizeof(Edge) * (size_t)c->nelems);
+    w->leaf_of = arena_alloc(sizeof(WNode *) * (size_t)c->nelems);
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        E[i] = (Edge){e->n[0], e->n[1], NULL, -1, true};
+        if (is_ideal(e)) {
+            E[i].src = i;
+            continue;
+        }
+        WNode *n = new_node(W_LEAF, e->n[0], e->n[1]);
+        n->elem = i;
+        n->R = leaf_R(c, e, p, fs);
+        n->pmask = expr_params(e->val);
+        E[i].node = w->leaf_of[i] = n;
+    }
+    while (reduce_parallel(E, c->nelems) || reduce_series(E, c->nelems, c->nnodes))
+        ;
+    build_root(w, E, c->nelems);
+    Vec order = {0};
+    for (int i = 0; i < w->root.nport; i++)
+        number(w, w->root.edge[i].node, &order);
+    w->nodes = (WNode **)order.data;
+    w->nnodes = order.len;
+    build_paths(w);
+    return w;
+}
+
+static const char *node_label(const Wdf *w, const WNode *n) {
+    const Circuit *c = w->c;
+    if (n->kind == W_LEAF)
+        return format("%s\\nR=%.4g", c->elems[n->elem].name, n->R);
+    return format("%s\\nR=%.4g", n->kind == W_SERIES ? "series" : "parallel", n->R);
+}
+
+void wdf_dot(const Wdf *w, FILE *out) {
+    const Circuit *c = w->c;
+    fprintf(out, "digraph %s {\n  node [fontname=\"Helvetica\"];\n", c->name);
+    fprintf(out, "  root [shape=doubleoctagon,label=\"root (%s, %d ports)\"];\n",
+                 w->root.nedge > 1 ? "rigid" : "open end", w->root.nport);
+    for (int i = 0; i < w->nnodes; i++) {
+        const WNode *n = w->nodes[i];
+        fprintf(out, "  n%d [shape=%s,label=\"%s\"];\n", n->id, n->kind == W_LEAF ? "box" : "ellipse",
+                node_label(w, n));
+        for (int k = 0; k < n->nchild; k++)
+            fprintf(out, "  n%d -> n%d [label=\"%s\"];\n", n->id, n->child[k]->id,
+                    n->pol[k] > 0 ? "+" : "-");
+    }
+    for (int i = 0; i < w->root.nedge; i++) {
+        const RootEdge *e = &w->root.edge[i];
+        if (e->kind == 0) {
+            fprintf(out, "  root -> n%d;\n", e->node->id);
+        } else {
+            fprintf(out, "  s%d [shape=circle,label=\"%s\\nideal %s\"];\n  root -> s%d;\n", i,
+                    c->elems[e->elem].name, e->kind == 1 ? "V" : "I", i);
+        }
+    }
+    fprintf(out, "}\n");
+}
+
+static void dump_node(const Wdf *w, const WNode *n, int depth, int pol, FILE *out) {
+    fprintf(out, "%*s%c%s", 2 * depth, "", pol > 0 ? '+' : '-',
+            n->kind == W_LEAF ? w->c->elems[n->elem].name : n->kind == W_SERIES ? "series" : "parallel");
+    fprintf(out, " R=%.6g\n", n->R);
+    for (int i = 0; i < n->nchild; i++)
+        dump_node(w, n->child[i], depth + 1, n->pol[i], out);
+}
+
+void wdf_dump(const Wdf *w, FILE *out) {
+    const Root *r = &w->root;
+    fprintf(out, "root: %d ports, %d ideal sources, %d core nodes\n", r->nport, r->nedge - r->nport,
+            r->ncore);
+    for (int i = 0; i < r->nedge; i++) {
+        if (r->edge[i].kind == 0)
+            dump_node(w, r->edge[i].node, 1, 1, out);
+        else
+            fprintf(out, "  source %s\n", w->c->elems[r->edge[i].elem].name);
+    }
+}
