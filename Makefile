@@ -53,7 +53,10 @@ demo: deps
 	$(MAKE) all
 	sh scripts/demo.sh
 
-test: all $(TEST_BINS)
+test: deps
+	$(MAKE) run-tests
+
+run-tests: all $(TEST_BINS)
 	sh tests/run.sh $(TEST_BINS)
 
 bench: all build/bench/bench
@@ -68,7 +71,7 @@ format:
 clean:
 	rm -rf build bin out
 
-.PHONY: all deps demo test bench format clean
+.PHONY: all deps demo test run-tests bench format clean
 .PRECIOUS: build/tests/%.o build/%.o
 
 -include $(shell find build -name '*.d' 2>/dev/null)

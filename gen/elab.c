@@ -404,7 +404,7 @@ static void dir_simple(Elab *E, Line *l) {
             if (!block_has_key(kind, l->kv[i].key))
                 error_at(l->kv[i].pos, "unknown key '%s' for a %s model", l->kv[i].key,
                          block_desc[kind].desc);
-        l->kind = kind;
+        l->model_kind = kind;
         vec_push(&E->models, l);
     }
 }
@@ -463,9 +463,38 @@ static Expr *div1(Expr *x) { return expr_bin(EX_DIV, expr_num(1, x->pos), x); }
 
 static void check_keys(Line *l) {
     for (int i = 0; i < l->nkv; i++)
-        if (!block_has_key(l->kind, l->kv[i].key))
+        if (!block_has_key(l->kind, l->kv[i].key) && strcmp(l->kv[i].key, "model"))
             error_at(l->kv[i].pos, "unknown key '%s' for %s '%s'", l->kv[i].key,
                      block_desc[l->kind].desc, l->name);
+}
+
+static Line *find_model(Elab *E, const Value *v) {
+    for (int i = 0; i < E->models.len; i++)
+        if (v->kind == VAL_NAME && !strcmp(((Line *)E->models.data[i])->name, v->name))
+            return E->models.data[i];
+    error_at(v->pos, "unknown model '%s'", v->kind == VAL_NAME ? v->name : "");
+}
+
+/* model=NAME: the model's keys become defaults of the element's. */
+static Line *with_model(Elab *E, Line *l) {
+    KeyVal *mk = key(l, "model");
+    if (!mk)
+        return l;
+    Line *m = find_model(E, &mk->val);
+    if (m->model_kind != l->kind)
+        error_at(mk->val.pos, "model '%s' is a %s model, not a %s model", m->name,
+                 block_desc[m->model_kind].desc, block_desc[l->kind].desc);
+    Line *r = arena_alloc(sizeof(Line));
+    *r = *l;
+    r->kv = arena_alloc(sizeof(KeyVal) * (size_t)(l->nkv + m->nkv + 1));
+    r->nkv = 0;
+    for (int i = 0; i < l->nkv; i++)
+        if (strcmp(l->kv[i].key, "model"))
+            r->kv[r->nkv++] = l->kv[i];
+    for (int i = 0; i < m->nkv; i++)
+        if (!key(l, m->kv[i].key))
+            r->kv[r->nkv++] = m->kv[i];
+    return r;
 }
 
 static void instantiate(Elab *E, Scope *S, Line *l);
@@ -477,19 +506,14 @@ static void element(Elab *E, Scope *S, Line *l) {
         return;
     }
     check_keys(l);
+    l = with_model(E, l);
     int nn = d->nnodes;
     int node[4] = {0};
     for (int i = 0; i < nn && i < 4; i++)
         node[i] = node_of(E, S, l->args[i].name, l->args[i].pos, true);
     if (l->kind == BK_D) {
         const Value *m = &l->args[2];
-        int found = -1;
-        for (int i = 0; i < E->models.len; i++)
-            if (!strcmp(((Line *)E->models.data[i])->name, m->name ? m->name : ""))
-                found = i;
-        if (m->kind != VAL_NAME || found < 0)
-            error_at(m->pos, "unknown model '%s'", m->name ? m->name : "");
-        if (((Line *)E->models.data[found])->kind != BK_D)
+        if (find_model(E, m)->model_kind != BK_D)
             error_at(m->pos, "model '%s' is not a diode model", m->name);
     }
     if (!d->ready)

@@ -196,6 +196,7 @@ typedef struct Line {
     const char *head;    /* directive (".param") or element name / keyword */
     SrcPos headpos;
     int kind;            /* element kind (BK_*) or -1 for directives */
+    int model_kind;      /* .model lines: the kind of element they serve */
     const char *name;    /* element instance name */
     SrcPos namepos;
     Value *args;         /* positional arguments after the name */

@@ -385,8 +385,8 @@ static void element(Parser *P, Line *l) {
     l->kind = kind;
     const BlockDesc *d = &block_desc[kind];
     Vec args = {0};
-    if (kind == BK_USE) { /* use BLOCK INST node... */
-        add_arg(&args, node_value(P));
+    if (kind == BK_USE) { /* use BLOCK INST node...: what was read as the name is the block */
+        add_arg(&args, (Value){.kind = VAL_NAME, .pos = l->namepos, .name = l->name});
         l->namepos = P->tok->pos;
         l->name = word(P, "an instance name");
     }
