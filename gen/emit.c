@@ -69,7 +69,10 @@ static const char *lit(Ctx *x, double v) {
 static const char *cexpr(Ctx *x, const Expr *e) {
     static const char *ops = "+-*/";
     switch (e->kind) {
-    case EX_NUM: return format("%.17g", e->num);
+    case EX_NUM: { /* always a double constant: 1/2 must not be integer division */
+        const char *s = format("%.17g", e->num);
+        return strpbrk(s, ".eni") ? s : format("%s.0", s);
+    }
     case EX_PARAM: return format("p[%d]", e->param);
     case EX_NEG: return format("(-%s)", cexpr(x, e->a));
     case EX_ADD: case EX_SUB: case EX_MUL: case EX_DIV:
