@@ -2,7 +2,7 @@
 # install-deps.sh - installs what building wdc needs, and nothing else.
 #
 # Checks for a C compiler and for the headers and libraries of libsndfile,
-# LAPACKE and cmocka; installs only the missing Debian packages with
+# LAPACKE and cmocka, and for clang (the tests compile voices with it); installs only the missing Debian packages with
 # apt-get (after one `apt-get update`), through sudo when not root.
 # Exit status: 0 when everything is present afterwards, 1 otherwise.
 #
@@ -67,6 +67,9 @@ if have_lib lapacke.h lapacke; then say "LAPACKE: found"
 else say "LAPACKE: missing"; missing="$missing liblapacke-dev"; fi
 if have_cmocka; then say "cmocka: found"
 else say "cmocka: missing"; missing="$missing libcmocka-dev"; fi
+# the tests compile every emitted voice with clang as well as gcc
+if command -v clang >/dev/null 2>&1; then say "clang: found"
+else say "clang: missing"; missing="$missing clang"; fi
 
 if [ -z "$missing" ]; then
     say "everything needed is installed"
@@ -97,6 +100,7 @@ have_cc || still="$still compiler($CC_CMD)"
 have_lib sndfile.h sndfile || still="$still sndfile.h/-lsndfile"
 have_lib lapacke.h lapacke || still="$still lapacke.h/-llapacke"
 have_cmocka || still="$still cmocka.h/-lcmocka"
+command -v clang >/dev/null 2>&1 || still="$still clang"
 [ -z "$still" ] || fail "still missing after installing:$still"
 say "done: installed$missing"
 exit 0

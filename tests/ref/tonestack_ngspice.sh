@@ -8,7 +8,9 @@
 #     setting_index,treble,bass,mid,freq_hz,re,im
 #
 # with 17 significant digits.  The frequencies are ngspice's own grid
-# (`ac dec 50 10 24k`: 170 points per setting), read back from its output.
+# (`ac dec 50 10 24k`: 170 points per setting), read back from its output,
+# followed by four rows at exactly 1k, 5k, 10k and 15k Hz (one-point `ac lin`
+# runs) where the test reports the frequency-warping error.
 #
 # The deck mirrors the netlist element for element.  A pot
 # `pot P a w b R=Rt pos=p [taper=log]` is two resistors
@@ -73,6 +75,12 @@ echo "$SETTINGS" | while read -r tr ba mi; do
         print "set wr_singlescale"
         print "ac dec 50 10 24k"
         print "wrdata " data " vr(out) vi(out)"
+        print "set appendwrite"
+        n = split("1k 5k 10k 15k", fx, " ")
+        for (k = 1; k <= n; k++) {
+            print "ac lin 1 " fx[k] " " fx[k]
+            print "wrdata " data " vr(out) vi(out)"
+        }
         print ".endc"
         print ".end"
     }' >"$deck" || exit 1
