@@ -317,7 +317,8 @@ typedef struct Circuit {
 Circuit *wdc_load(const char *path);
 /* Same, from text in memory (name is used in diagnostics). */
 Circuit *wdc_load_string(const char *name, const char *text);
-/* Element values for the given params, checked positive; also used by
+/* Element values for the given params (not clamped: the voice clamps to
+ * positive values at run time, the compiler checks defaults); also used by
  * tests as the reference for a network's values. */
 double elem_value(const Circuit *c, const Elem *e, const double *params);
 double elem_drive(const Circuit *c, const Elem *e, const double *params);

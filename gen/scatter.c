@@ -89,19 +89,19 @@ void scatter_node(const WNode *n, double *S) {
         }
 }
 
-/* max |S^T G S - G| / max G for an n-port with port resistances R */
+/* max |S^T G S - G|_ij / sqrt(G_i G_j) for an n-port with port
+ * resistances R: unchanged by scaling all resistances, and an error at a
+ * small conductance is not hidden by a large one. */
 static double lossless_err(const double *S, const double *R, int n) {
-    double err = 0, gmax = 0;
-    for (int i = 0; i < n; i++)
-        gmax = fmax(gmax, 1 / R[i]);
+    double err = 0;
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++) {
             double acc = 0;
             for (int k = 0; k < n; k++)
                 acc += S[k * n + i] * S[k * n + j] / R[k];
-            err = fmax(err, fabs(acc - (i == j) / R[i]));
+            err = fmax(err, fabs(acc - (i == j) / R[i]) * sqrt(R[i] * R[j]));
         }
-    return err / gmax;
+    return err;
 }
 
 double scatter_check(const Wdf *w, double tol) {

@@ -1,0 +1,647 @@
+/*
+ * test_emit.c - every example netlist emits a voice that is standalone,
+ * portable C.
+ *
+ * For each netlists/ *.wdn, in double and in float precision, bin/wdc
+ * writes NAME.c / NAME.h into a temporary directory, and NAME.c must
+ * compile with gcc and with clang (clang is skipped with a notice only if
+ * it is not installed) under -std=c99 -Wall -Wextra -pedantic -Werror -O2
+ * with exit status 0 and no compiler output at all.
+ *
+ * The emitted text is then read:
+ *  - the code (comments and string literals removed) names no allocator,
+ *    no stdio, no threads or locks and no LAPACK/BLAS symbol;
+ *  - NAME.c includes only <math.h>, <string.h> and the voice's own
+ *    headers ("NAME.h", "wdvoice.h"); NAME.h only "wdvoice.h";
+ *  - NAME.h declares `extern const wdv_class NAME_class` and NAME.c
+ *    defines it.
+ *
+ * A voice must never allocate, lock or do I/O (wdvoice.h).  Rather than
+ * hooking malloc while process runs, the test reads the symbol table of
+ * each compiled object: `nm -u` may list only the C99 <math.h> functions
+ * (any precision), memset, memcpy and memmove, plus the stack-protector
+ * pair __stack_chk_fail / __stack_chk_guard that hardened compilers insert
+ * on their own.  That covers process and every other entry point at once.
+ * The object must also export exactly one global symbol, NAME_class, so
+ * many voices can be linked into one program.
+ *
+ * A last test feeds the text and symbol checkers known-bad input, so they
+ * are shown able to fail.
+ *
+ * $WDC overrides the compiler path (default bin/wdc); $WDC_KEEP=1 keeps
+ * the temporary directories.
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+#include <ctype.h>
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "testlib.h"
+
+#define STD_FLAGS "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O2", "-c"
+
+/* ---- processes and files ---- */
+
+/* Runs argv (looked up in PATH) with stdout and stderr both going to the
+ * file `log`; returns the exit status, 127 if it could not be started,
+ * or -1. */
+static int run_logged(char *const argv[], const char *log) {
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd < 0)
+            _exit(126);
+        dup2(fd, STDOUT_FILENO);
+        dup2(fd, STDERR_FILENO);
+        close(fd);
+        execvp(argv[0], argv);
+        _exit(127);
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0)
+        if (errno != EINTR)
+            return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* Whole contents of a file (malloc'ed, NUL-terminated), or NULL. */
+static char *slurp(const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    size_t cap = 4096, len = 0;
+    char *s = malloc(cap);
+    while (s) {
+        size_t got = fread(s + len, 1, cap - len - 1, f);
+        len += got;
+        if (got == 0)
+            break;
+        if (len + 1 == cap) {
+            char *t = realloc(s, cap * 2);
+            if (!t) {
+                free(s);
+                s = NULL;
+                break;
+            }
+            s = t;
+            cap *= 2;
+        }
+    }
+    fclose(f);
+    if (s)
+        s[len] = '\0';
+    return s;
+}
+
+/* True if an executable named `prog` is on PATH. */
+static int on_path(const char *prog) {
+    const char *path = getenv("PATH");
+    if (!path)
+        return 0;
+    char buf[1024];
+    while (*path) {
+        const char *colon = strchr(path, ':');
+        size_t n = colon ? (size_t)(colon - path) : strlen(path);
+        snprintf(buf, sizeof buf, "%.*s/%s", (int)n, n ? path : ".", prog);
+        if (access(buf, X_OK) == 0)
+            return 1;
+        path += n + (colon != NULL);
+    }
+    return 0;
+}
+
+static void remove_dir(const char *dir) {
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    struct dirent *de;
+    char path[1024];
+    while ((de = readdir(d)) != NULL) {
+        if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
+            continue;
+        snprintf(path, sizeof path, "%s/%s", dir, de->d_name);
+        unlink(path);
+    }
+    closedir(d);
+    rmdir(dir);
+}
+
+/* The one NAME.c in dir -> name; returns 0, or -1 if there is not
+ * exactly one. */
+static int voice_name(const char *dir, char *name, size_t cap) {
+    DIR *d = opendir(dir);
+    if (!d)
+        return -1;
+    int found = 0;
+    struct dirent *de;
+    while ((de = readdir(d)) != NULL) {
+        size_t len = strlen(de->d_name);
+        if (len > 2 && !strcmp(de->d_name + len - 2, ".c") && len - 2 < cap) {
+            memcpy(name, de->d_name, len - 2);
+            name[len - 2] = '\0';
+            found++;
+        }
+    }
+    closedir(d);
+    return found == 1 ? 0 : -1;
+}
+
+/* ---- text checks ---- */
+
+/* Set while the checkers are fed known-bad input on purpose. */
+static int quiet;
+
+#define report(...) \
+    do { \
+        if (!quiet) \
+            print_error(__VA_ARGS__); \
+    } while (0)
+
+/* A copy of C text with comments and string/char literals blanked out
+ * (newlines kept, so line numbers still match). */
+static char *code_only(const char *s) {
+    size_t n = strlen(s);
+    char *o = malloc(n + 1);
+    if (!o)
+        return NULL;
+    size_t i = 0;
+    while (i < n) {
+        if (s[i] == '/' && s[i + 1] == '*') {
+            o[i] = o[i + 1] = ' ';
+            i += 2;
+            while (i < n && !(s[i] == '*' && s[i + 1] == '/')) {
+                o[i] = s[i] == '\n' ? '\n' : ' ';
+                i++;
+            }
+            for (int k = 0; k < 2 && i < n; k++)
+                o[i++] = ' ';
+        } else if (s[i] == '/' && s[i + 1] == '/') {
+            while (i < n && s[i] != '\n')
+                o[i++] = ' ';
+        } else if (s[i] == '"' || s[i] == '\'') {
+            char q = s[i];
+            o[i++] = q;
+            while (i < n && s[i] != q && s[i] != '\n') {
+                if (s[i] == '\\' && i + 1 < n) {
+                    o[i++] = ' ';
+                }
+                o[i++] = ' ';
+            }
+            if (i < n)
+                o[i] = s[i], i++;
+        } else {
+            o[i] = s[i];
+            i++;
+        }
+    }
+    o[n] = '\0';
+    return o;
+}
+
+static int ci_contains(const char *s, const char *sub) {
+    size_t m = strlen(sub);
+    for (; *s; s++) {
+        size_t k = 0;
+        while (k < m && s[k] && tolower((unsigned char)s[k]) == tolower((unsigned char)sub[k]))
+            k++;
+        if (k == m)
+            return 1;
+    }
+    return 0;
+}
+
+/* Why an identifier may not appear in a voice, or NULL if it may. */
+static const char *forbidden_ident(const char *id) {
+    static const char *const exact[] = {
+        /* allocation */
+        "malloc", "calloc", "realloc", "free", "aligned_alloc", "posix_memalign",
+        "alloca", "valloc", "memalign", "strdup", "strndup",
+        /* stdio and other I/O */
+        "printf", "fprintf", "sprintf", "snprintf", "vprintf", "vfprintf",
+        "vsprintf", "vsnprintf", "puts", "fputs", "putchar", "fputc", "putc",
+        "fopen", "freopen", "fdopen", "fclose", "fread", "fwrite", "fflush",
+        "perror", "open", "read", "write", "stdout", "stderr", "FILE",
+        /* processes, dynamic loading, time */
+        "exit", "abort", "system", "dlopen", "sleep", "usleep", "nanosleep",
+        "clock_gettime", "time",
+    };
+    for (size_t k = 0; k < sizeof exact / sizeof exact[0]; k++)
+        if (!strcmp(id, exact[k]))
+            return exact[k];
+    if (!strncmp(id, "pthread", 7))
+        return "pthread";
+    if (!strncmp(id, "mtx_", 4) || !strncmp(id, "cnd_", 4) || !strncmp(id, "thrd_", 5) ||
+        !strncmp(id, "sem_", 4) || !strncmp(id, "atomic_", 7))
+        return "threads/locks";
+    if (ci_contains(id, "lapack") || ci_contains(id, "cblas") || !strncmp(id, "dgesv", 5) ||
+        !strncmp(id, "dgetr", 5))
+        return "LAPACK/BLAS";
+    return NULL;
+}
+
+/* Checks the code of one emitted file: forbidden identifiers and
+ * #include lines outside `allowed` (NULL-terminated, each written with
+ * its <> or "").  Returns the number of problems, each printed with
+ * `file` and its line. */
+static int check_text(const char *file, const char *text, const char *const *allowed) {
+    char *code = code_only(text);
+    if (!code) {
+        report("%s: out of memory\n", file);
+        return 1;
+    }
+    int bad = 0, line = 1;
+    const char *p = code;
+    int at_line_start = 1;
+    while (*p) {
+        if (*p == '\n') {
+            line++;
+            at_line_start = 1;
+            p++;
+            continue;
+        }
+        if (at_line_start && (*p == ' ' || *p == '\t')) {
+            p++;
+            continue;
+        }
+        if (at_line_start && *p == '#') {
+            const char *q = p + 1;
+            while (*q == ' ' || *q == '\t')
+                q++;
+            if (!strncmp(q, "include", 7)) {
+                /* the include's target is a literal: read it from text */
+                const char *t = text + (q + 7 - code);
+                while (*t == ' ' || *t == '\t')
+                    t++;
+                const char *e = t;
+                while (*e && *e != '\n' && *e != ' ' && *e != '\t')
+                    e++;
+                int ok = 0;
+                for (int k = 0; allowed[k]; k++)
+                    if ((size_t)(e - t) == strlen(allowed[k]) && !strncmp(t, allowed[k], (size_t)(e - t)))
+                        ok = 1;
+                if (!ok) {
+                    report("%s:%d: #include %.*s is not allowed in a voice\n", file, line,
+                                (int)(e - t), t);
+                    bad++;
+                }
+                while (*p && *p != '\n')
+                    p++;
+                continue;
+            }
+        }
+        at_line_start = 0;
+        if (isalpha((unsigned char)*p) || *p == '_') {
+            const char *s = p;
+            while (isalnum((unsigned char)*p) || *p == '_')
+                p++;
+            char id[128];
+            size_t len = (size_t)(p - s) < sizeof id - 1 ? (size_t)(p - s) : sizeof id - 1;
+            memcpy(id, s, len);
+            id[len] = '\0';
+            const char *why = forbidden_ident(id);
+            if (why) {
+                report("%s:%d: '%s' (%s) has no place in a voice\n", file, line, id, why);
+                bad++;
+            }
+            continue;
+        }
+        if (isdigit((unsigned char)*p)) { /* skip numbers such as 1e-30f */
+            while (isalnum((unsigned char)*p) || *p == '.' || *p == '_')
+                p++;
+            continue;
+        }
+        p++;
+    }
+    free(code);
+    return bad;
+}
+
+/* ---- symbol checks ---- */
+
+static int allowed_undefined(const char *sym) {
+    static const char *const math[] = {
+        "acos", "asin", "atan", "atan2", "cos", "sin", "tan", "acosh", "asinh", "atanh",
+        "cosh", "sinh", "tanh", "exp", "exp2", "expm1", "frexp", "ldexp", "ilogb",
+        "log", "log10", "log1p", "log2", "logb", "modf", "scalbn", "scalbln", "cbrt",
+        "fabs", "hypot", "pow", "sqrt", "erf", "erfc", "lgamma", "tgamma", "ceil",
+        "floor", "nearbyint", "rint", "lrint", "llrint", "round", "lround", "llround",
+        "trunc", "fmod", "remainder", "remquo", "copysign", "nan", "nextafter",
+        "nexttoward", "fdim", "fmax", "fmin", "fma",
+    };
+    static const char *const other[] = {
+        "memset", "memcpy", "memmove", "__stack_chk_fail", "__stack_chk_guard",
+    };
+    for (size_t k = 0; k < sizeof other / sizeof other[0]; k++)
+        if (!strcmp(sym, other[k]))
+            return 1;
+    for (size_t k = 0; k < sizeof math / sizeof math[0]; k++) {
+        size_t m = strlen(math[k]);
+        if (strncmp(sym, math[k], m))
+            continue;
+        /* double, float and long double variants */
+        if (!sym[m] || ((sym[m] == 'f' || sym[m] == 'l') && !sym[m + 1]))
+            return 1;
+    }
+    return 0;
+}
+
+/* Checks `nm -u` / `nm -g --defined-only` listings of one object (the
+ * text nm printed).  Returns the number of problems, printed. */
+static int check_symbols(const char *obj, const char *undef, const char *defs, const char *name) {
+    int bad = 0;
+    char line[512];
+    for (const char *p = undef; *p;) {
+        const char *e = strchr(p, '\n');
+        size_t n = e ? (size_t)(e - p) : strlen(p);
+        snprintf(line, sizeof line, "%.*s", (int)n, p);
+        p += n + (e != NULL);
+        /* the last word is the symbol; strip a symbol version (@GLIBC_x) */
+        char *sym = strrchr(line, ' ');
+        sym = sym ? sym + 1 : line;
+        char *at = strchr(sym, '@');
+        if (at)
+            *at = '\0';
+        if (!*sym)
+            continue;
+        if (!allowed_undefined(sym)) {
+            report("%s: calls '%s', which a voice may not (only libm, memset, memcpy, memmove)\n",
+                        obj, sym);
+            bad++;
+        }
+    }
+    char want[256];
+    snprintf(want, sizeof want, "%s_class", name);
+    int nglobal = 0, has_class = 0;
+    for (const char *p = defs; *p;) {
+        const char *e = strchr(p, '\n');
+        size_t n = e ? (size_t)(e - p) : strlen(p);
+        snprintf(line, sizeof line, "%.*s", (int)n, p);
+        p += n + (e != NULL);
+        char *sym = strrchr(line, ' ');
+        sym = sym ? sym + 1 : line;
+        if (!*sym)
+            continue;
+        nglobal++;
+        if (!strcmp(sym, want))
+            has_class = 1;
+        else {
+            report("%s: exports '%s'; a voice exports only %s\n", obj, sym, want);
+            bad++;
+        }
+    }
+    if (!has_class) {
+        report("%s: does not define %s\n", obj, want);
+        bad++;
+    }
+    (void)nglobal;
+    return bad;
+}
+
+/* ---- one netlist ---- */
+
+typedef struct Ctx {
+    char dir[64];
+    char name[128];
+    char path[1024];
+    int problems;
+} Ctx;
+
+static void file_in(const Ctx *x, char *buf, size_t cap, const char *suffix) {
+    snprintf(buf, cap, "%s/%s%s", x->dir, x->name, suffix);
+}
+
+/* Prints a log file's contents (if any) through print_error. */
+static void show_log(const char *what, const char *log) {
+    char *t = slurp(log);
+    if (t && *t)
+        print_error("---- %s ----\n%s", what, t);
+    free(t);
+}
+
+/* Compiles NAME.c with cc into NAME.<cc>.o and checks the output and the
+ * object's symbols. */
+static void compile_and_check(Ctx *x, const char *cc, const char *prec) {
+    char csrc[1024], obj[1024], log[1024];
+    file_in(x, csrc, sizeof csrc, ".c");
+    snprintf(obj, sizeof obj, "%s/%s.%s.%s.o", x->dir, x->name, prec, cc);
+    snprintf(log, sizeof log, "%s/%s.%s.%s.log", x->dir, x->name, prec, cc);
+    char *argv[] = {(char *)cc, STD_FLAGS, csrc, "-o", obj, NULL};
+    int st = run_logged(argv, log);
+    char *out = slurp(log);
+    int silent = out && !*out;
+    if (st != 0 || !silent) {
+        print_error("%s (%s): %s -std=c99 -Wall -Wextra -pedantic -Werror -O2 -c: exit status %d%s\n",
+                    x->path, prec, cc, st, silent ? "" : ", with output:");
+        if (out && *out)
+            print_error("%s", out);
+        x->problems++;
+    }
+    free(out);
+    if (st != 0)
+        return;
+
+    char ulog[1100], dlog[1100];
+    snprintf(ulog, sizeof ulog, "%s.undef", obj);
+    snprintf(dlog, sizeof dlog, "%s.defs", obj);
+    char *nm_u[] = {"nm", "-u", obj, NULL};
+    char *nm_d[] = {"nm", "-g", "--defined-only", obj, NULL};
+    int s1 = run_logged(nm_u, ulog), s2 = run_logged(nm_d, dlog);
+    if (s1 != 0 || s2 != 0) {
+        print_error("%s: nm failed (exit status %d, %d)\n", obj, s1, s2);
+        show_log("nm -u", ulog);
+        x->problems++;
+        return;
+    }
+    char *undef = slurp(ulog), *defs = slurp(dlog);
+    if (!undef || !defs) {
+        print_error("%s: cannot read the nm listings\n", obj);
+        x->problems++;
+    } else {
+        x->problems += check_symbols(obj, undef, defs, x->name);
+    }
+    free(undef);
+    free(defs);
+}
+
+static void check_emitted_text(Ctx *x) {
+    char csrc[1024], hdr[1024], wdv[1024];
+    file_in(x, csrc, sizeof csrc, ".c");
+    file_in(x, hdr, sizeof hdr, ".h");
+    snprintf(wdv, sizeof wdv, "%s/wdvoice.h", x->dir);
+    char *c = slurp(csrc), *h = slurp(hdr), *v = slurp(wdv);
+    if (!c || !h || !v) {
+        print_error("%s: emitted %s.c, %s.h and wdvoice.h are not all readable in %s\n", x->path,
+                    x->name, x->name, x->dir);
+        x->problems++;
+        free(c), free(h), free(v);
+        return;
+    }
+    char own[256];
+    snprintf(own, sizeof own, "\"%s.h\"", x->name);
+    const char *const c_allowed[] = {"<math.h>", "<string.h>", own, "\"wdvoice.h\"", NULL};
+    const char *const h_allowed[] = {"\"wdvoice.h\"", NULL};
+    const char *const v_allowed[] = {"<stddef.h>", NULL};
+    x->problems += check_text(csrc, c, c_allowed);
+    x->problems += check_text(hdr, h, h_allowed);
+    x->problems += check_text(wdv, v, v_allowed);
+
+    /* NAME.h declares the class, NAME.c defines it */
+    char decl[256], def[256];
+    snprintf(decl, sizeof decl, "extern const wdv_class %s_class;", x->name);
+    snprintf(def, sizeof def, "const wdv_class %s_class =", x->name);
+    char *hc = code_only(h), *cc = code_only(c);
+    if (!hc || !strstr(hc, decl)) {
+        print_error("%s: does not declare `%s`\n", hdr, decl);
+        x->problems++;
+    }
+    if (!cc || !strstr(cc, def)) {
+        print_error("%s: does not define `%s ...`\n", csrc, def);
+        x->problems++;
+    }
+    free(hc);
+    free(cc);
+    free(c);
+    free(h);
+    free(v);
+}
+
+static int have_clang = -1;
+
+static void test_netlist(void **state) {
+    const char *netlist = *state;
+    const char *wdc = getenv("WDC");
+    if (!wdc || !*wdc)
+        wdc = "bin/wdc";
+    static const char *const precs[] = {"double", "float"};
+    int problems = 0;
+    quiet = 0;
+    for (int pi = 0; pi < 2; pi++) {
+        Ctx x = {0};
+        snprintf(x.path, sizeof x.path, "%s", netlist);
+        snprintf(x.dir, sizeof x.dir, "/tmp/wdc-emit-XXXXXX");
+        if (!mkdtemp(x.dir))
+            fail_msg("mkdtemp: %s", strerror(errno));
+        char log[256];
+        snprintf(log, sizeof log, "%s/wdc.log", x.dir);
+        char *argv[] = {(char *)wdc, (char *)netlist, "-o", x.dir, "--precision", (char *)precs[pi], NULL};
+        int st = run_logged(argv, log);
+        if (st != 0) {
+            print_error("%s %s -o %s --precision %s: exit status %d\n", wdc, netlist, x.dir, precs[pi], st);
+            show_log("wdc", log);
+            x.problems++;
+        } else {
+            unlink(log);
+            if (voice_name(x.dir, x.name, sizeof x.name) != 0) {
+                print_error("%s: expected exactly one NAME.c in %s\n", netlist, x.dir);
+                x.problems++;
+            } else {
+                check_emitted_text(&x);
+                compile_and_check(&x, "gcc", precs[pi]);
+                if (have_clang)
+                    compile_and_check(&x, "clang", precs[pi]);
+            }
+        }
+        if (!x.problems)
+            print_message("%-26s %-6s gcc%s: clean\n", netlist, precs[pi], have_clang ? " and clang" : "");
+        problems += x.problems;
+        const char *keep = getenv("WDC_KEEP");
+        if (keep && *keep == '1')
+            print_message("kept %s\n", x.dir);
+        else
+            remove_dir(x.dir);
+    }
+    if (problems)
+        fail_msg("%s: %d problem(s) in the emitted voice", netlist, problems);
+}
+
+static void test_netlists_present(void **state) {
+    int n = *(int *)*state;
+    assert_true(n > 0);
+}
+
+/* The checkers themselves reject what they are meant to reject. */
+static void test_checkers_can_fail(void **state) {
+    (void)state;
+    const char *const allowed[] = {"<math.h>", "<string.h>", "\"v.h\"", NULL};
+    /* accepted: forbidden words only in comments and strings, allowed
+     * includes, identifiers that merely contain a forbidden word */
+    const char *good = "#include <math.h>\n#include \"v.h\"\n/* malloc free printf */\n"
+                       "static const char *s = \"fopen pthread\"; // lapack\n"
+                       "static double freq_free_1(double x) { return sqrt(x) * 1e-30; }\n";
+    assert_int_equal(check_text("good.c", good, allowed), 0);
+    static const char *const bad[] = {
+        "#include <stdio.h>\n",
+        "#  include <stdlib.h>\n",
+        "void f(void) { void *p = malloc(4); (void)p; }\n",
+        "void f(void *p) { free(p); }\n",
+        "void f(void) { printf(\"x\"); }\n",
+        "void f(void) { fopen(\"x\", \"r\"); }\n",
+        "void f(void) { pthread_mutex_lock(0); }\n",
+        "void f(void) { LAPACKE_dgesv(0); }\n",
+        "void f(void) { dgesv_(0); }\n",
+    };
+    quiet = 1;
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++)
+        assert_true(check_text("bad.c", bad[k], allowed) > 0);
+
+    assert_true(allowed_undefined("sin") && allowed_undefined("sinf") && allowed_undefined("powl"));
+    assert_true(allowed_undefined("memset") && allowed_undefined("fmax"));
+    assert_false(allowed_undefined("malloc"));
+    assert_false(allowed_undefined("sinh_") || allowed_undefined("single"));
+    assert_int_equal(check_symbols("ok.o", "                 U memset\n                 U pow\n",
+                                   "0000000000000000 R v_class\n", "v"),
+                     0);
+    assert_true(check_symbols("bad.o", "                 U malloc\n", "0000 R v_class\n", "v") > 0);
+    assert_true(check_symbols("bad.o", "                 U printf@GLIBC_2.2.5\n", "0000 R v_class\n", "v") > 0);
+    assert_true(check_symbols("bad.o", "", "0000 T helper\n0000 R v_class\n", "v") > 0);
+    assert_true(check_symbols("bad.o", "", "0000 R w_class\n", "v") > 0);
+    quiet = 0;
+}
+
+int main(void) {
+    have_clang = on_path("clang");
+    if (!have_clang)
+        printf("test_emit: clang is not installed; compiling with gcc only\n");
+    int n = 0;
+    char **paths = tl_netlists(&n);
+    struct CMUnitTest *tests = calloc((size_t)n + 2, sizeof *tests);
+    char **names = calloc((size_t)n + 1, sizeof *names);
+    if (!tests || !names)
+        return 1;
+    tests[0].name = "netlists_present";
+    tests[0].test_func = test_netlists_present;
+    tests[0].initial_state = &n;
+    tests[1].name = "checkers_can_fail";
+    tests[1].test_func = test_checkers_can_fail;
+    for (int k = 0; k < n; k++) {
+        names[k] = malloc(strlen(paths[k]) + 16);
+        if (!names[k])
+            return 1;
+        sprintf(names[k], "emit %s", paths[k]);
+        tests[k + 2].name = names[k];
+        tests[k + 2].test_func = test_netlist;
+        tests[k + 2].initial_state = paths[k];
+    }
+    int rc = _cmocka_run_group_tests("emit", tests, (size_t)n + 2, NULL, NULL);
+    for (int k = 0; k < n; k++)
+        free(names[k]);
+    free(names);
+    free(tests);
+    tl_netlists_free(paths, n);
+    return rc;
+}
