@@ -1,45 +1,59 @@
 /* refsim.c - trapezoidal-rule nodal simulation of a Circuit (see refsim.h). */
 #include "refsim.h"
 
-#include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* The simulation runs in extended precision, so that its own rounding is
+ * far below that of a double-precision voice it is compared with.
+ * Building with -DREFSIM_REAL=double gives a plain double version. */
+#ifndef REFSIM_REAL
+#define REFSIM_REAL long double
+#endif
+typedef REFSIM_REAL real;
+
 struct refsim {
     const Circuit *c;
-    double fs, T;
-    int nn;          /* node unknowns: graph nodes 1..nnodes-1 */
-    int N;           /* unknowns of the step system */
-    int *br;         /* element -> branch unknown of the step system, or -1 */
+    real fs, T;
+    int nn;           /* node unknowns: graph nodes 1..nnodes-1 */
+    int N;            /* unknowns of the step system */
+    int *br;          /* element -> branch unknown of the step system, or -1 */
     double *params;
-    int dirty;       /* params changed since the matrix was built */
-    double *val;     /* element values in force (0: no value) */
-    double *cdrv;    /* constant drive of each source without an input */
-    double *A;       /* LU factors of the step matrix, N x N row-major */
+    int dirty;        /* params changed since the matrix was built */
+    real *val;        /* element values in force (0: no value) */
+    real *cdrv;       /* constant drive of each source without an input */
+    real *A;          /* LU factors of the step matrix, N x N row-major */
     int *piv;
-    double *rhs;     /* N */
-    double *nodev;   /* node voltages, nnodes (0 for ground) */
-    double *v, *i;   /* element voltage and current, last sample */
-    double *d;       /* source drives, last sample */
-    double *px;      /* PR_X integrals, per probe */
-    double *pv;      /* PR_X: last v(n0) - v(n1), per probe */
-    double work;
+    real *rhs;        /* N */
+    real *nodev;      /* node voltages, nnodes (0 for ground) */
+    real *v, *i;      /* element voltage and current, last sample */
+    real *d;          /* source drives, last sample */
+    real *px;         /* PR_X integrals, per probe */
+    real *pv;         /* PR_X: last v(n0) - v(n1), per probe */
+    real work;
     long t;
-    int singular0;
+    int singular0;    /* the network of sample -1 was singular */
+    int round_state;  /* 0, or 64 / 32: state and factors rounded to
+                         double / float (refsim_round_state) */
 };
+
+static real rd_(const refsim *s, real x) {
+    return s->round_state == 32 ? (real)(float)x : (real)(double)x;
+}
+#define rd(x) rd_(s, (x))
 
 /* ---- dense LU with partial pivoting ---- */
 
 /* Factors the n x n row-major matrix in place; returns -1 if a pivot is
  * exactly zero. */
-static int lu_factor(double *a, int *piv, int n) {
+static int lu_factor(real *a, int *piv, int n) {
     for (int k = 0; k < n; k++) {
         int p = k;
-        double best = fabs(a[k * n + k]);
+        real best = fabsl(a[k * n + k]);
         for (int r = k + 1; r < n; r++)
-            if (fabs(a[r * n + k]) > best) {
-                best = fabs(a[r * n + k]);
+            if (fabsl(a[r * n + k]) > best) {
+                best = fabsl(a[r * n + k]);
                 p = r;
             }
         piv[k] = p;
@@ -47,13 +61,13 @@ static int lu_factor(double *a, int *piv, int n) {
             return -1;
         if (p != k)
             for (int j = 0; j < n; j++) {
-                double tmp = a[k * n + j];
+                real tmp = a[k * n + j];
                 a[k * n + j] = a[p * n + j];
                 a[p * n + j] = tmp;
             }
-        double inv = 1.0 / a[k * n + k];
+        real inv = 1.0 / a[k * n + k];
         for (int r = k + 1; r < n; r++) {
-            double f = a[r * n + k] * inv;
+            real f = a[r * n + k] * inv;
             a[r * n + k] = f;
             if (f != 0.0)
                 for (int j = k + 1; j < n; j++)
@@ -63,23 +77,23 @@ static int lu_factor(double *a, int *piv, int n) {
     return 0;
 }
 
-static void lu_solve(const double *a, const int *piv, int n, double *b) {
+static void lu_solve(const real *a, const int *piv, int n, real *b) {
     for (int k = 0; k < n; k++) {
         int p = piv[k];
         if (p != k) {
-            double tmp = b[k];
+            real tmp = b[k];
             b[k] = b[p];
             b[p] = tmp;
         }
     }
     for (int r = 1; r < n; r++) {
-        double s = b[r];
+        real s = b[r];
         for (int j = 0; j < r; j++)
             s -= a[r * n + j] * b[j];
         b[r] = s;
     }
     for (int r = n - 1; r >= 0; r--) {
-        double s = b[r];
+        real s = b[r];
         for (int j = r + 1; j < n; j++)
             s -= a[r * n + j] * b[j];
         b[r] = s / a[r * n + r];
@@ -149,7 +163,7 @@ static int self_loop(const Elem *e) { return e->n[0] == e->n[1]; }
 /* ---- stamps ---- */
 
 /* Adds g between the node unknowns of nodes a and b (0: ground). */
-static void stamp_g(double *A, int N, int a, int b, double g) {
+static void stamp_g(real *A, int N, int a, int b, real g) {
     if (a)
         A[(a - 1) * N + (a - 1)] += g;
     if (b)
@@ -162,7 +176,7 @@ static void stamp_g(double *A, int N, int a, int b, double g) {
 
 /* Adds a branch unknown k whose current flows from a to b, and the
  * v(a) - v(b) part of its own row. */
-static void stamp_branch(double *A, int N, int a, int b, int k) {
+static void stamp_branch(real *A, int N, int a, int b, int k) {
     if (a) {
         A[(a - 1) * N + k] += 1.0;
         A[k * N + (a - 1)] += 1.0;
@@ -175,7 +189,7 @@ static void stamp_branch(double *A, int N, int a, int b, int k) {
 
 /* A current j flowing from a through an element to b, moved to the
  * right-hand side. */
-static void stamp_j(double *rhs, int a, int b, double j) {
+static void stamp_j(real *rhs, int a, int b, real j) {
     if (a)
         rhs[a - 1] -= j;
     if (b)
@@ -183,7 +197,7 @@ static void stamp_j(double *rhs, int a, int b, double j) {
 }
 
 /* Nodes no element touches get v = 0. */
-static void pin_unused(const Circuit *c, double *A, int N) {
+static void pin_unused(const Circuit *c, real *A, int N) {
     for (int k = 1; k < c->nnodes; k++) {
         int used = 0;
         for (int e = 0; e < c->nelems && !used; e++)
@@ -212,12 +226,12 @@ static void update_values(refsim *s) {
 static void build_step_matrix(refsim *s) {
     const Circuit *c = s->c;
     int N = s->N;
-    double *A = s->A;
-    memset(A, 0, sizeof(double) * (size_t)N * (size_t)N);
+    real *A = s->A;
+    memset(A, 0, sizeof(real) * (size_t)N * (size_t)N);
     for (int e = 0; e < c->nelems; e++) {
         const Elem *el = &c->elems[e];
         int a = el->n[0], b = el->n[1];
-        double x = s->val[e];
+        real x = s->val[e];
         if (self_loop(el))
             continue;
         switch (el->kind) {
@@ -231,6 +245,8 @@ static void build_step_matrix(refsim *s) {
             int k = s->br[e];
             stamp_branch(A, N, a, b, k);
             A[k * N + k] -= 2.0 * x / s->T;
+            break;
+        default: /* not linear: refused by refsim_new */
             break;
         }
         case E_V: {
@@ -250,14 +266,16 @@ static void build_step_matrix(refsim *s) {
      * here can only come from values that cancel exactly. */
     if (lu_factor(A, s->piv, N) != 0)
         die("refsim: singular step matrix");
+    if (s->round_state)
+        for (size_t k = 0; k < (size_t)N * (size_t)N; k++)
+            A[k] = rd(A[k]);
     s->dirty = 0;
 }
 
-static double drive_of(const refsim *s, int e, const double *in) {
+static real drive_of(const refsim *s, int e, const double *in) {
     const Elem *el = &s->c->elems[e];
-    if (el->input >= 0)
-        return in ? in[el->input] : 0.0;
-    return s->cdrv[e];
+    real d = el->input >= 0 ? (in ? in[el->input] : 0.0) : s->cdrv[e];
+    return s->round_state ? rd(d) : d;
 }
 
 /* ---- sample -1 ---- */
@@ -267,16 +285,16 @@ static double drive_of(const refsim *s, int e, const double *in) {
  * their drive (0 when input-driven).  Fills the N x N matrix A and the
  * right-hand side x. */
 static void build_init_system(const refsim *s, const int *br0, int N,
-                              double *A, double *x) {
+                              real *A, real *x) {
     const Circuit *c = s->c;
-    memset(A, 0, sizeof(double) * (size_t)N * (size_t)N);
-    memset(x, 0, sizeof(double) * (size_t)N);
+    memset(A, 0, sizeof(real) * (size_t)N * (size_t)N);
+    memset(x, 0, sizeof(real) * (size_t)N);
     for (int e = 0; e < c->nelems; e++) {
         const Elem *el = &c->elems[e];
         int a = el->n[0], b = el->n[1];
-        double val = s->val[e];
-        double ic = el->ic ? expr_eval(el->ic, s->params) : 0.0;
-        double d = el->input >= 0 ? 0.0 : s->cdrv[e];
+        real val = s->val[e];
+        real ic = el->ic ? expr_eval(el->ic, s->params) : 0.0;
+        real d = el->input >= 0 ? 0.0 : s->cdrv[e];
         if (self_loop(el))
             continue;
         switch (el->kind) {
@@ -299,6 +317,8 @@ static void build_init_system(const refsim *s, const int *br0, int N,
             if (has_value(el))
                 stamp_g(A, N, a, b, 1.0 / val);
             stamp_j(x, a, b, d);
+            break;
+        default: /* not linear: refused by refsim_new */
             break;
         }
     }
@@ -324,37 +344,26 @@ static void initial_state(refsim *s) {
     }
     s->singular0 = !solvable(c, vedge, iedge);
 
-    double *A = calloc((size_t)N * (size_t)N + 1, sizeof(double));
-    double *x = calloc((size_t)N + 1, sizeof(double));
+    real *A = calloc((size_t)N * (size_t)N + 1, sizeof(real));
+    real *x = calloc((size_t)N + 1, sizeof(real));
     int *piv = malloc(sizeof(int) * ((size_t)N + 1));
     if (!A || !x || !piv)
         die("refsim: out of memory");
     build_init_system(s, br0, N, A, x);
     if (!s->singular0 && lu_factor(A, piv, N) != 0)
         s->singular0 = 1;
-    if (!s->singular0) {
+    if (!s->singular0)
         lu_solve(A, piv, N, x);
-    } else {
-        /* Least-norm solution for the node voltages and source currents;
-         * capacitor currents and inductor voltages are set to 0 below. */
-        double *sv = malloc(sizeof(double) * ((size_t)N + 1));
-        lapack_int rank;
-        if (!sv)
-            die("refsim: out of memory");
-        build_init_system(s, br0, N, A, x);
-        if (N > 0 && LAPACKE_dgelsd(LAPACK_ROW_MAJOR, N, N, 1, A, N, x, 1, sv,
-                                    1e-12, &rank) != 0)
-            memset(x, 0, sizeof(double) * (size_t)N);
-        free(sv);
-    }
+    else
+        memset(x, 0, sizeof(real) * (size_t)N);
 
     s->nodev[0] = 0.0;
     for (int k = 1; k < c->nnodes; k++)
         s->nodev[k] = x[k - 1];
     for (int e = 0; e < ne; e++) {
         const Elem *el = &c->elems[e];
-        double ic = el->ic ? expr_eval(el->ic, s->params) : 0.0;
-        double vv = self_loop(el) ? 0.0 : s->nodev[el->n[0]] - s->nodev[el->n[1]];
+        real ic = el->ic ? expr_eval(el->ic, s->params) : 0.0;
+        real vv = self_loop(el) ? 0.0 : s->nodev[el->n[0]] - s->nodev[el->n[1]];
         s->d[e] = 0.0;
         switch (el->kind) {
         case E_R:
@@ -372,12 +381,17 @@ static void initial_state(refsim *s) {
         case E_V:
             s->d[e] = el->input >= 0 ? 0.0 : s->cdrv[e];
             s->v[e] = vv;
-            s->i[e] = br0[e] < 0 ? 0.0 : x[br0[e]];
+            if (s->singular0 && has_value(el))
+                s->i[e] = (vv - s->d[e]) / s->val[e];
+            else
+                s->i[e] = br0[e] < 0 ? 0.0 : x[br0[e]];
             break;
         case E_I:
             s->d[e] = el->input >= 0 ? 0.0 : s->cdrv[e];
             s->v[e] = vv;
             s->i[e] = s->d[e] + (has_value(el) ? vv / s->val[e] : 0.0);
+            break;
+        default: /* not linear: refused by refsim_new */
             break;
         }
     }
@@ -392,7 +406,7 @@ static void initial_state(refsim *s) {
             const IcSpec *ic = &c->ics[j];
             if (ic->fn != 'x')
                 continue;
-            double xv = expr_eval(ic->val, s->params);
+            real xv = expr_eval(ic->val, s->params);
             if (ic->node == p->n[0] && ic->node != 0)
                 s->px[k] += xv;
             if (ic->node == p->n[1] && ic->node != 0)
@@ -409,6 +423,17 @@ static void initial_state(refsim *s) {
 
 /* ---- public ---- */
 
+int refsim_linear_kind(int kind) {
+    return kind == E_R || kind == E_C || kind == E_L || kind == E_V || kind == E_I;
+}
+
+int refsim_can_simulate(const Circuit *c) {
+    for (int e = 0; e < c->nelems; e++)
+        if (!refsim_linear_kind((int)c->elems[e].kind))
+            return 0;
+    return 1;
+}
+
 refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     refsim *s = calloc(1, sizeof *s);
     if (!s)
@@ -417,18 +442,18 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     size_t nes = (size_t)ne + 1, nos = (size_t)c->nouts + 1;
     s->c = c;
     s->fs = fs;
-    s->T = 1.0 / fs;
+    s->T = 1.0L / fs;
     s->nn = c->nnodes - 1;
     s->br = malloc(sizeof(int) * nes);
     s->params = calloc((size_t)c->nparams + 1, sizeof(double));
-    s->val = calloc(nes, sizeof(double));
-    s->cdrv = calloc(nes, sizeof(double));
-    s->v = calloc(nes, sizeof(double));
-    s->i = calloc(nes, sizeof(double));
-    s->d = calloc(nes, sizeof(double));
-    s->nodev = calloc((size_t)c->nnodes + 1, sizeof(double));
-    s->px = calloc(nos, sizeof(double));
-    s->pv = calloc(nos, sizeof(double));
+    s->val = calloc(nes, sizeof(real));
+    s->cdrv = calloc(nes, sizeof(real));
+    s->v = calloc(nes, sizeof(real));
+    s->i = calloc(nes, sizeof(real));
+    s->d = calloc(nes, sizeof(real));
+    s->nodev = calloc((size_t)c->nnodes + 1, sizeof(real));
+    s->px = calloc(nos, sizeof(real));
+    s->pv = calloc(nos, sizeof(real));
     if (!s->br || !s->params || !s->val || !s->cdrv || !s->v || !s->i ||
         !s->d || !s->nodev || !s->px || !s->pv) {
         refsim_free(s);
@@ -436,6 +461,10 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     }
     for (int k = 0; k < c->nparams; k++)
         s->params[k] = params ? params[k] : c->params[k].def;
+    if (!refsim_can_simulate(c)) {
+        refsim_free(s);
+        return NULL;
+    }
 
     int N = s->nn;
     int *vedge = calloc(nes, sizeof(int)), *iedge = calloc(nes, sizeof(int));
@@ -457,9 +486,9 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     free(vedge);
     free(iedge);
     s->N = N;
-    s->A = calloc((size_t)N * (size_t)N + 1, sizeof(double));
+    s->A = calloc((size_t)N * (size_t)N + 1, sizeof(real));
     s->piv = malloc(sizeof(int) * ((size_t)N + 1));
-    s->rhs = calloc((size_t)N + 1, sizeof(double));
+    s->rhs = calloc((size_t)N + 1, sizeof(real));
     if (!ok || !s->A || !s->piv || !s->rhs) {
         refsim_free(s);
         return NULL;
@@ -493,12 +522,12 @@ double refsim_get_param(const refsim *s, int id) {
 void refsim_step(refsim *s, const double *in, double *out) {
     const Circuit *c = s->c;
     int N = s->N;
-    double *rhs = s->rhs;
+    real *rhs = s->rhs;
     if (s->dirty) {
         update_values(s);
         build_step_matrix(s);
     }
-    memset(rhs, 0, sizeof(double) * (size_t)N);
+    memset(rhs, 0, sizeof(real) * (size_t)N);
     for (int e = 0; e < c->nelems; e++) {
         const Elem *el = &c->elems[e];
         int a = el->n[0], b = el->n[1];
@@ -508,12 +537,14 @@ void refsim_step(refsim *s, const double *in, double *out) {
         case E_R:
             break;
         case E_C: {
-            double g = 2.0 * s->val[e] / s->T;
+            real g = 2.0 * s->val[e] / s->T;
             stamp_j(rhs, a, b, -(g * s->v[e] + s->i[e]));
+            break;
+        default: /* not linear: refused by refsim_new */
             break;
         }
         case E_L: {
-            double z = 2.0 * s->val[e] / s->T;
+            real z = 2.0 * s->val[e] / s->T;
             rhs[s->br[e]] = -z * s->i[e] - s->v[e];
             break;
         }
@@ -529,20 +560,22 @@ void refsim_step(refsim *s, const double *in, double *out) {
     for (int k = 1; k < c->nnodes; k++)
         s->nodev[k] = rhs[k - 1];
 
-    double pw = 0.0;
+    real pw = 0.0;
     for (int e = 0; e < c->nelems; e++) {
         const Elem *el = &c->elems[e];
-        double vv = self_loop(el) ? 0.0 : s->nodev[el->n[0]] - s->nodev[el->n[1]];
-        double pv = s->v[e], pi = s->i[e];
+        real vv = self_loop(el) ? 0.0 : s->nodev[el->n[0]] - s->nodev[el->n[1]];
+        real pv = s->v[e], pi = s->i[e];
         switch (el->kind) {
         case E_R:
             s->v[e] = vv;
             s->i[e] = vv / s->val[e];
             break;
         case E_C: {
-            double g = 2.0 * s->val[e] / s->T;
+            real g = 2.0 * s->val[e] / s->T;
             s->v[e] = vv;
             s->i[e] = self_loop(el) ? 0.0 : g * (vv - pv) - pi;
+            break;
+        default: /* not linear: refused by refsim_new */
             break;
         }
         case E_L:
@@ -551,7 +584,7 @@ void refsim_step(refsim *s, const double *in, double *out) {
                 s->i[e] = rhs[s->br[e]];
             break;
         case E_V: {
-            double dn = drive_of(s, e, in);
+            real dn = drive_of(s, e, in);
             s->v[e] = vv;
             s->i[e] = self_loop(el) ? 0.0 : rhs[s->br[e]];
             pw -= 0.25 * (dn + s->d[e]) * (s->i[e] + pi);
@@ -559,7 +592,7 @@ void refsim_step(refsim *s, const double *in, double *out) {
             break;
         }
         case E_I: {
-            double dn = drive_of(s, e, in);
+            real dn = drive_of(s, e, in);
             s->v[e] = vv;
             s->i[e] = dn + (has_value(el) ? vv / s->val[e] : 0.0);
             pw -= 0.25 * (vv + pv) * (dn + s->d[e]);
@@ -569,10 +602,19 @@ void refsim_step(refsim *s, const double *in, double *out) {
         }
     }
     s->work += s->T * pw;
+    if (s->round_state) {
+        for (int k = 1; k < c->nnodes; k++)
+            s->nodev[k] = rd(s->nodev[k]);
+        for (int e = 0; e < c->nelems; e++) {
+            s->v[e] = rd(s->v[e]);
+            s->i[e] = rd(s->i[e]);
+        }
+        s->work = rd(s->work);
+    }
 
     for (int k = 0; k < c->nouts; k++) {
         const Probe *p = &c->outs[k];
-        double o = 0.0;
+        real o = 0.0;
         switch (p->kind) {
         case PR_V:
             o = s->nodev[p->n[0]] - s->nodev[p->n[1]];
@@ -582,21 +624,23 @@ void refsim_step(refsim *s, const double *in, double *out) {
             o = s->i[p->elem];
             break;
         case PR_X: {
-            double vv = s->nodev[p->n[0]] - s->nodev[p->n[1]];
+            real vv = s->nodev[p->n[0]] - s->nodev[p->n[1]];
             s->px[k] += 0.5 * s->T * (vv + s->pv[k]);
+            if (s->round_state)
+                s->px[k] = rd(s->px[k]);
             s->pv[k] = vv;
             o = s->px[k];
             break;
         }
         }
         if (out)
-            out[k] = o;
+            out[k] = (double)o;
     }
     s->t++;
 }
 
 double refsim_energy(const refsim *s) {
-    double E = 0.0;
+    real E = 0.0;
     for (int e = 0; e < s->c->nelems; e++) {
         const Elem *el = &s->c->elems[e];
         if (el->kind == E_C)
@@ -604,20 +648,25 @@ double refsim_energy(const refsim *s) {
         else if (el->kind == E_L)
             E += 0.5 * s->val[e] * s->i[e] * s->i[e];
     }
-    return E;
+    return (double)E;
 }
 
-double refsim_work(const refsim *s) { return s->work; }
+double refsim_work(const refsim *s) { return (double)s->work; }
 
 long refsim_time(const refsim *s) { return s->t; }
 
-double refsim_elem_v(const refsim *s, int e) { return s->v[e]; }
+double refsim_elem_v(const refsim *s, int e) { return (double)s->v[e]; }
 
-double refsim_elem_i(const refsim *s, int e) { return s->i[e]; }
+double refsim_elem_i(const refsim *s, int e) { return (double)s->i[e]; }
 
-double refsim_node_v(const refsim *s, int node) { return s->nodev[node]; }
+double refsim_node_v(const refsim *s, int node) { return (double)s->nodev[node]; }
 
 int refsim_init_singular(const refsim *s) { return s->singular0; }
+
+void refsim_round_state(refsim *s, int bits) {
+    s->round_state = bits == 32 ? 32 : bits ? 64 : 0;
+    s->dirty = 1;
+}
 
 void refsim_free(refsim *s) {
     if (!s)

@@ -1,9 +1,9 @@
 /*
  * refsim.h - a reference simulator for elaborated circuits.
  *
- * Simulates a Circuit (gen.h) by modified nodal analysis with trapezoidal
- * companion models, independently of the wave-digital structure, so a
- * voice can be checked against it sample for sample.
+ * Simulates a linear Circuit (gen.h) by modified nodal analysis with
+ * trapezoidal companion models, independently of the wave-digital
+ * structure, so a voice can be checked against it sample for sample.
  *
  * Conventions (the same as a voice's):
  *   - Every element's current i flows from its n[0] through it to n[1];
@@ -21,8 +21,11 @@
  *     is one resistive solve of the network with each capacitor replaced
  *     by a voltage source and each inductor by a current source of that
  *     value, input-driven sources at 0 and constant sources at their value.
- *     If that network is singular, capacitor currents and inductor voltages
- *     start at 0 (and node voltages come from a least-norm solve).
+ *     If that network is singular (a loop of capacitors and ideal voltage
+ *     sources, or a cut of inductors and ideal current sources), the
+ *     reactances keep their .ic values and everything else starts from
+ *     node voltages of 0: no current through capacitors, no voltage across
+ *     inductors, and source currents and voltages as those voltages give.
  *   - The first refsim_step() computes sample 0.
  *   - Probes (Circuit.outs): PR_V is v(n0) - v(n1); PR_I and PR_F the
  *     element's current (a source's whole current, parallel resistor
@@ -40,11 +43,15 @@
 
 typedef struct refsim refsim;
 
+/* Whether an element kind is one of the linear ones refsim simulates
+ * (E_R, E_C, E_L, E_V, E_I), and whether every element of c is. */
+int refsim_linear_kind(int kind);
+int refsim_can_simulate(const Circuit *c);
 /* A simulator of `c` at sample rate fs (Hz) with the given param values
  * (Circuit.nparams of them; NULL: the defaults), at sample -1.  The
- * Circuit must outlive it.  Returns NULL if out of memory or if the
- * network cannot be simulated (a loop of ideal voltage sources or a cut
- * of ideal current sources). */
+ * Circuit must outlive it.  Returns NULL if out of memory, if c has a
+ * nonlinear element, or if the network cannot be simulated (a loop of
+ * ideal voltage sources or a cut of ideal current sources). */
 refsim *refsim_new(const Circuit *c, double fs, const double *params);
 /* Changes param `id` (clamped to [min, max] as a voice does); it takes
  * effect from the next step on. */
@@ -66,6 +73,13 @@ double refsim_elem_i(const refsim *s, int e);
 double refsim_node_v(const refsim *s, int node);
 /* Whether the initial network was singular (see above). */
 int refsim_init_singular(const refsim *s);
+/* With bits = 64 (32), the state (node voltages, element voltages and
+ * currents, integrals, work) is rounded to double (float) after every
+ * step and the factors of the step matrix when they are computed: the
+ * error that merely storing the state and coefficients in that precision
+ * causes, a floor for what a voice computing in it can reach.  0: off
+ * (the default). */
+void refsim_round_state(refsim *s, int bits);
 void refsim_free(refsim *s);
 
 #endif

@@ -1,0 +1,565 @@
+/* testlib.c - helpers shared by the cmocka tests (see testlib.h). */
+#include "testlib.h"
+
+#include <cmocka.h>
+#include <dirent.h>
+#include <errno.h>
+#include <glob.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+/* ---- voices ---- */
+
+/* Runs argv[0] with argv and waits; returns its exit status, 128 + N if
+ * signal N ended it, or -1 if it could not be run. */
+static int run_command(char *const argv[]) {
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        execv(argv[0], argv);
+        fprintf(stderr, "testlib: cannot run %s: %s\n", argv[0], strerror(errno));
+        _exit(127);
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0)
+        if (errno != EINTR)
+            return -1;
+    if (WIFSIGNALED(status))
+        return 128 + WTERMSIG(status);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* Finds the one NAME.c in dir. */
+static int find_voice_source(const char *dir, char *name, size_t cap) {
+    DIR *d = opendir(dir);
+    if (!d)
+        return -1;
+    int found = 0;
+    struct dirent *de;
+    while ((de = readdir(d)) != NULL) {
+        size_t len = strlen(de->d_name);
+        if (len > 2 && !strcmp(de->d_name + len - 2, ".c")) {
+            found++;
+            if (len - 2 < cap) {
+                memcpy(name, de->d_name, len - 2);
+                name[len - 2] = '\0';
+            }
+        }
+    }
+    closedir(d);
+    return found == 1 ? 0 : -1;
+}
+
+static void remove_dir(const char *dir) {
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    struct dirent *de;
+    char path[512];
+    while ((de = readdir(d)) != NULL) {
+        if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
+            continue;
+        snprintf(path, sizeof path, "%s/%s", dir, de->d_name);
+        unlink(path);
+    }
+    closedir(d);
+    rmdir(dir);
+}
+
+/* Build directories not yet removed, so that a test that fails between
+ * tl_voice_build and tl_voice_free leaves nothing behind at exit. */
+#define TL_MAX_DIRS 256
+static char tl_dirs[TL_MAX_DIRS][64];
+
+static int keep_dirs(void) {
+    const char *keep = getenv("WDC_KEEP");
+    return keep && *keep == '1';
+}
+
+static void remove_dirs_at_exit(void) {
+    if (keep_dirs())
+        return;
+    for (int k = 0; k < TL_MAX_DIRS; k++)
+        if (tl_dirs[k][0]) {
+            remove_dir(tl_dirs[k]);
+            tl_dirs[k][0] = '\0';
+        }
+}
+
+static void track_dir(const char *dir, int add) {
+    static int registered;
+    if (!registered) {
+        atexit(remove_dirs_at_exit);
+        registered = 1;
+    }
+    for (int k = 0; k < TL_MAX_DIRS; k++) {
+        if (add && !tl_dirs[k][0]) {
+            snprintf(tl_dirs[k], sizeof tl_dirs[k], "%s", dir);
+            return;
+        }
+        if (!add && !strcmp(tl_dirs[k], dir)) {
+            tl_dirs[k][0] = '\0';
+            return;
+        }
+    }
+}
+
+int tl_voice_build(const char *netlist, int single, tl_voice *v) {
+    memset(v, 0, sizeof *v);
+    snprintf(v->dir, sizeof v->dir, "/tmp/wdc-test-XXXXXX");
+    if (!mkdtemp(v->dir)) {
+        fprintf(stderr, "testlib: mkdtemp: %s\n", strerror(errno));
+        v->dir[0] = '\0';
+        return -1;
+    }
+    track_dir(v->dir, 1);
+    const char *wdc = getenv("WDC");
+    if (!wdc || !*wdc)
+        wdc = "bin/wdc";
+    char *argv[8];
+    int n = 0;
+    argv[n++] = (char *)wdc;
+    argv[n++] = (char *)netlist;
+    argv[n++] = "-o";
+    argv[n++] = v->dir;
+    if (single) {
+        argv[n++] = "--precision";
+        argv[n++] = "float";
+    }
+    argv[n] = NULL;
+    int st = run_command(argv);
+    if (st != 0) {
+        fprintf(stderr, "testlib: %s %s -o %s%s: exit status %d\n", wdc, netlist,
+                v->dir, single ? " --precision float" : "", st);
+        return -1;
+    }
+    if (find_voice_source(v->dir, v->name, sizeof v->name) != 0) {
+        fprintf(stderr, "testlib: %s: expected one voice source in %s\n", netlist,
+                v->dir);
+        return -1;
+    }
+    char csrc[512], so[512];
+    snprintf(csrc, sizeof csrc, "%s/%s.c", v->dir, v->name);
+    snprintf(so, sizeof so, "%s/%s.so", v->dir, v->name);
+    wdrt_result r = wdrt_voice_compile(csrc, so, NULL, "-O2 -Wall -Wextra -pedantic");
+    if (r != WDRT_OK) {
+        fprintf(stderr, "testlib: compiling %s: %s\n", csrc, wdrt_result_str(r));
+        return -1;
+    }
+    r = wdrt_voice_open(so, v->name, &v->lib);
+    if (r != WDRT_OK) {
+        fprintf(stderr, "testlib: loading %s: %s\n", so, wdrt_result_str(r));
+        return -1;
+    }
+    v->cls = v->lib.cls;
+    if (v->cls->precision != (single ? 32 : 64)) {
+        fprintf(stderr, "testlib: %s: precision %d, expected %d\n", so,
+                v->cls->precision, single ? 32 : 64);
+        return -1;
+    }
+    return 0;
+}
+
+void tl_voice_free(tl_voice *v) {
+    if (v->lib.handle)
+        wdrt_voice_close(&v->lib);
+    v->cls = NULL;
+    if (v->dir[0]) {
+        track_dir(v->dir, 0);
+        if (!keep_dirs())
+            remove_dir(v->dir);
+    }
+    v->dir[0] = '\0';
+}
+
+void *tl_state_new(const wdv_class *cls, double fs) {
+    size_t size = (cls->state_size + 63) / 64 * 64;
+    void *p = NULL;
+    if (posix_memalign(&p, 64, size ? size : 64) != 0)
+        return NULL;
+    memset(p, 0, size ? size : 64);
+    cls->init(p, fs);
+    return p;
+}
+
+void tl_state_free(void *state) { free(state); }
+
+/* ---- random numbers ---- */
+
+void tl_rng_seed(tl_rng *r, uint64_t seed) {
+    /* splitmix64 of the seed, so nearby seeds give unrelated streams */
+    uint64_t z = seed + 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    r->s = z ? z : 0x2545F4914F6CDD1Dull;
+}
+
+uint64_t tl_rng_next(tl_rng *r) {
+    uint64_t x = r->s;
+    x ^= x >> 12;
+    x ^= x << 25;
+    x ^= x >> 27;
+    r->s = x;
+    return x * 0x2545F4914F6CDD1Dull;
+}
+
+double tl_rng_uniform(tl_rng *r) {
+    return (double)(tl_rng_next(r) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+double tl_rng_signed(tl_rng *r) { return 2.0 * tl_rng_uniform(r) - 1.0; }
+
+/* ---- measures ---- */
+
+double rel_rms_error(const double *a, const double *b, long n) {
+    double num = 0.0, den = 0.0;
+    for (long k = 0; k < n; k++) {
+        double d = a[k] - b[k];
+        num += d * d;
+        den += b[k] * b[k];
+    }
+    if (den == 0.0)
+        return n > 0 ? sqrt(num / (double)n) : 0.0;
+    return sqrt(num / den);
+}
+
+double tl_db(double x) { return x > 0.0 ? 20.0 * log10(x) : -400.0; }
+
+long tl_first_divergence(const double *a, const double *b, long n, double tol) {
+    double peak = 0.0;
+    for (long k = 0; k < n; k++)
+        if (fabs(b[k]) > peak)
+            peak = fabs(b[k]);
+    if (peak == 0.0)
+        peak = 1.0;
+    for (long k = 0; k < n; k++)
+        if (!(fabs(a[k] - b[k]) <= tol * peak))
+            return k;
+    return -1;
+}
+
+void tl_assert_buf_near_(const double *a, const double *b, long n, double tol,
+                         const char *file, int line) {
+    for (long k = 0; k < n; k++)
+        if (!(fabs(a[k] - b[k]) <= tol)) {
+            print_error("sample %ld: %.17g vs %.17g (difference %.3g > %.3g)\n", k,
+                        a[k], b[k], a[k] - b[k], tol);
+            _fail(file, line);
+        }
+}
+
+/* ---- input signals ---- */
+
+void tl_signal_init(tl_signal *s, tl_sigkind kind, double amp, long at,
+                    uint64_t seed) {
+    memset(s, 0, sizeof *s);
+    s->kind = kind;
+    s->amp = amp;
+    s->at = at;
+    s->seed = seed;
+    for (int k = 0; k < TL_MAX_INPUTS; k++)
+        tl_rng_seed(&s->rng[k], seed * 1000003ull + (uint64_t)k);
+}
+
+double tl_signal_next(tl_signal *s, int input, long n) {
+    tl_rng *r = &s->rng[input % TL_MAX_INPUTS];
+    switch (s->kind) {
+    case TL_SILENCE:
+        return 0.0;
+    case TL_NOISE:
+        return s->amp * tl_rng_signed(r);
+    case TL_STEP:
+        return n >= s->at ? s->amp : 0.0;
+    case TL_BURST:
+        return n < s->at ? s->amp * tl_rng_signed(r) : 0.0;
+    case TL_IMPULSE:
+        return n == s->at ? s->amp : 0.0;
+    }
+    return 0.0;
+}
+
+/* ---- parameter changes ---- */
+
+static double random_in_range(tl_rng *r, double lo, double hi) {
+    if (lo > 0.0 && hi >= 10.0 * lo)
+        return lo * pow(hi / lo, tl_rng_uniform(r));
+    return lo + (hi - lo) * tl_rng_uniform(r);
+}
+
+int tl_random_changes(const Circuit *c, tl_rng *r, long nframes, int nchanges,
+                      tl_change *out) {
+    int n = 0;
+    for (int j = 0; j < nchanges; j++) {
+        /* moment j in the j-th of nchanges + 1 equal slices, not at 0 */
+        double lo = (double)(j + 1) / (nchanges + 1) - 0.5 / (nchanges + 1);
+        double f = lo + tl_rng_uniform(r) * (0.5 / (nchanges + 1));
+        long at = (long)(f * (double)nframes) / 64 * 64;
+        if (at <= 0)
+            at = 64;
+        for (int p = 0; p < c->nparams; p++) {
+            out[n].at = at;
+            out[n].param = p;
+            out[n].value = random_in_range(r, c->params[p].min, c->params[p].max);
+            n++;
+        }
+    }
+    return n;
+}
+
+/* ---- side by side ---- */
+
+static double **alloc_bufs(int n, long len) {
+    double **b = calloc((size_t)n + 1, sizeof(double *));
+    if (!b)
+        return NULL;
+    for (int k = 0; k < n; k++) {
+        b[k] = calloc((size_t)len + 1, sizeof(double));
+        if (!b[k]) {
+            for (int j = 0; j < k; j++)
+                free(b[j]);
+            free(b);
+            return NULL;
+        }
+    }
+    return b;
+}
+
+static void free_bufs(double **b, int n) {
+    if (!b)
+        return;
+    for (int k = 0; k < n; k++)
+        free(b[k]);
+    free(b);
+}
+
+static int check_ports(const Circuit *c, const wdv_class *cls) {
+    int ok = 1;
+    if (cls->n_inputs != c->ninputs || cls->n_outputs != c->nouts ||
+        cls->n_params != c->nparams) {
+        print_error("voice %s has %d inputs, %d outputs, %d params; the netlist %d, "
+                    "%d, %d\n",
+                    cls->name, cls->n_inputs, cls->n_outputs, cls->n_params,
+                    c->ninputs, c->nouts, c->nparams);
+        return 0;
+    }
+    for (int k = 0; k < c->nouts; k++)
+        if (strcmp(cls->outputs[k].name, c->outs[k].name)) {
+            print_error("voice %s output %d is '%s', the netlist's '%s'\n", cls->name,
+                        k, cls->outputs[k].name, c->outs[k].name);
+            ok = 0;
+        }
+    for (int k = 0; k < c->ninputs; k++)
+        if (strcmp(cls->inputs[k].name, c->inputs[k])) {
+            print_error("voice %s input %d is '%s', the netlist's '%s'\n", cls->name, k,
+                        cls->inputs[k].name, c->inputs[k]);
+            ok = 0;
+        }
+    for (int k = 0; k < c->nparams; k++)
+        if (strcmp(cls->params[k].name, c->params[k].name)) {
+            print_error("voice %s param %d is '%s', the netlist's '%s'\n", cls->name, k,
+                        cls->params[k].name, c->params[k].name);
+            ok = 0;
+        }
+    return ok;
+}
+
+int tl_run_side_by_side(const Circuit *c, const wdv_class *cls,
+                        const tl_run_opts *o, tl_run *r) {
+    memset(r, 0, sizeof *r);
+    if (!check_ports(c, cls))
+        return -1;
+    long N = o->nframes;
+    int nin = c->ninputs, nout = c->nouts;
+    int block = o->block > 0 ? o->block : 64;
+    if (o->track_energy)
+        block = 1;
+    r->nframes = N;
+    r->nouts = nout;
+    r->ninputs = nin;
+    r->voice = alloc_bufs(nout, N);
+    r->ref = alloc_bufs(nout, N);
+    if (o->with_floor)
+        r->floor = alloc_bufs(nout, N);
+    r->in = alloc_bufs(nin, N);
+    void *st = tl_state_new(cls, o->fs);
+    int linear = refsim_can_simulate(c);
+    refsim *rs = linear ? refsim_new(c, o->fs, NULL) : NULL;
+    refsim *rf = linear && o->with_floor ? refsim_new(c, o->fs, NULL) : NULL;
+    r->have_ref = linear;
+    if (rf)
+        refsim_round_state(rf, o->with_floor);
+    double *rin = calloc((size_t)nin + 1, sizeof(double));
+    double *rout = calloc((size_t)nout + 1, sizeof(double));
+    const double **ip = calloc((size_t)nin + 1, sizeof(double *));
+    double **op = calloc((size_t)nout + 1, sizeof(double *));
+    if (o->track_energy) {
+        r->venergy = calloc((size_t)N + 1, sizeof(double));
+        r->vwork = calloc((size_t)N + 1, sizeof(double));
+        r->renergy = calloc((size_t)N + 1, sizeof(double));
+        r->rwork = calloc((size_t)N + 1, sizeof(double));
+    }
+    int ok = r->voice && r->ref && r->in && st && (rs || !linear) && rin && rout &&
+             ip && op && (!linear || !o->with_floor || (rf && r->floor)) &&
+             (!o->track_energy || (r->venergy && r->vwork && r->renergy && r->rwork));
+    if (!ok) {
+        print_error("tl_run_side_by_side: %s\n",
+                    !rs && st ? "refsim cannot simulate this network" : "out of memory");
+        goto done;
+    }
+    for (int k = 0; k < nin; k++)
+        for (long n = 0; n < N; n++)
+            r->in[k][n] = o->signal ? tl_signal_next(o->signal, k, n) : 0.0;
+
+    if (o->params0)
+        for (int p = 0; p < c->nparams; p++) {
+            cls->set_param(st, p, o->params0[p]);
+            if (rs)
+                refsim_set_param(rs, p, o->params0[p]);
+            if (rf)
+                refsim_set_param(rf, p, o->params0[p]);
+        }
+    r->venergy0 = cls->energy(st);
+    r->vwork0 = cls->work(st);
+    r->renergy0 = rs ? refsim_energy(rs) : 0.0;
+    r->rwork0 = rs ? refsim_work(rs) : 0.0;
+
+    int ch = 0;
+    for (long pos = 0; pos < N;) {
+        while (ch < o->nchanges && o->changes[ch].at <= pos) {
+            cls->set_param(st, o->changes[ch].param, o->changes[ch].value);
+            if (rs)
+                refsim_set_param(rs, o->changes[ch].param, o->changes[ch].value);
+            if (rf)
+                refsim_set_param(rf, o->changes[ch].param, o->changes[ch].value);
+            ch++;
+        }
+        long end = (pos / block + 1) * block;
+        if (end > N)
+            end = N;
+        if (ch < o->nchanges && o->changes[ch].at < end)
+            end = o->changes[ch].at;
+        int n = (int)(end - pos);
+        for (int k = 0; k < nin; k++)
+            ip[k] = r->in[k] + pos;
+        for (int k = 0; k < nout; k++)
+            op[k] = r->voice[k] + pos;
+        cls->process(st, ip, op, n);
+        for (long t = pos; rs && t < end; t++) {
+            for (int k = 0; k < nin; k++)
+                rin[k] = r->in[k][t];
+            refsim_step(rs, rin, rout);
+            for (int k = 0; k < nout; k++)
+                r->ref[k][t] = rout[k];
+            if (rf) {
+                refsim_step(rf, rin, rout);
+                for (int k = 0; k < nout; k++)
+                    r->floor[k][t] = rout[k];
+            }
+        }
+        if (o->track_energy) {
+            r->venergy[end - 1] = cls->energy(st);
+            r->vwork[end - 1] = cls->work(st);
+            r->renergy[end - 1] = rs ? refsim_energy(rs) : 0.0;
+            r->rwork[end - 1] = rs ? refsim_work(rs) : 0.0;
+        }
+        pos = end;
+    }
+done:
+    free(rin);
+    free(rout);
+    free(ip);
+    free(op);
+    refsim_free(rs);
+    refsim_free(rf);
+    tl_state_free(st);
+    if (!ok) {
+        tl_run_free(r);
+        return -1;
+    }
+    return 0;
+}
+
+void tl_run_free(tl_run *r) {
+    free_bufs(r->voice, r->nouts);
+    free_bufs(r->ref, r->nouts);
+    free_bufs(r->floor, r->nouts);
+    free_bufs(r->in, r->ninputs);
+    free(r->venergy);
+    free(r->vwork);
+    free(r->renergy);
+    free(r->rwork);
+    memset(r, 0, sizeof *r);
+}
+
+double tl_run_worst(const tl_run *r, int *which) {
+    double worst = 0.0;
+    int w = 0;
+    for (int k = 0; k < r->nouts; k++) {
+        double e = rel_rms_error(r->voice[k], r->ref[k], r->nframes);
+        if (!(e <= worst)) {
+            worst = e;
+            w = k;
+        }
+    }
+    if (which)
+        *which = w;
+    return worst;
+}
+
+double tl_run_floor(const tl_run *r) {
+    double worst = 0.0;
+    if (!r->floor)
+        return 0.0;
+    for (int k = 0; k < r->nouts; k++) {
+        double e = rel_rms_error(r->floor[k], r->ref[k], r->nframes);
+        if (!(e <= worst))
+            worst = e;
+    }
+    return worst;
+}
+
+void tl_run_report(const tl_run *r, const Circuit *c, int k, double tol) {
+    long n = tl_first_divergence(r->voice[k], r->ref[k], r->nframes, tol);
+    if (n < 0) {
+        print_message("  output %s: no sample differs by more than %.3g of the peak\n",
+                      c->outs[k].name, tol);
+        return;
+    }
+    print_message("  output %s: first sample off by more than %.3g of the peak: n=%ld, "
+                  "voice %.17g, reference %.17g\n",
+                  c->outs[k].name, tol, n, r->voice[k][n], r->ref[k][n]);
+}
+
+/* ---- netlists ---- */
+
+char **tl_netlists(int *n) {
+    glob_t g;
+    *n = 0;
+    if (glob("netlists/*.wdn", 0, NULL, &g) != 0)
+        return NULL;
+    char **v = calloc(g.gl_pathc + 1, sizeof(char *));
+    if (!v) {
+        globfree(&g);
+        return NULL;
+    }
+    for (size_t k = 0; k < g.gl_pathc; k++)
+        v[k] = strdup(g.gl_pathv[k]);
+    *n = (int)g.gl_pathc;
+    globfree(&g);
+    return v;
+}
+
+void tl_netlists_free(char **v, int n) {
+    if (!v)
+        return;
+    for (int k = 0; k < n; k++)
+        free(v[k]);
+    free(v);
+}
