@@ -25,10 +25,11 @@ build/%.o: %.c
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -Iruntime -Igen -c $< -o $@
 
-build/gen/templates.c: templates/voice.c.tmpl templates/voice.h.tmpl runtime/wdvoice.h scripts/embed.sh
+build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/embed.sh
 	@mkdir -p $(dir $@)
 	sh scripts/embed.sh $@ tmpl_voice_c=templates/voice.c.tmpl tmpl_voice_h=templates/voice.h.tmpl \
-		tmpl_wdvoice_h=runtime/wdvoice.h
+		tmpl_wdvoice_h=runtime/wdvoice.h tmpl_nl_diode=templates/nl_diode.c.tmpl tmpl_nl_omega=templates/nl_omega.c.tmpl \
+		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_contact=templates/nl_contact.c.tmpl
 
 build/gen/templates.o: build/gen/templates.c
 	$(CC) $(CFLAGS) -c $< -o $@

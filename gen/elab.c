@@ -497,6 +497,121 @@ static Line *with_model(Elab *E, Line *l) {
     return r;
 }
 
+
+static Solver solver_of(Line *l, NlSpec *nl) {
+    KeyVal *k = key(l, "solver");
+    if (!k)
+        return SOLVER_DEFAULT;
+    const char *v = k->val.kind == VAL_NAME ? k->val.name : "";
+    nl->solver_pos = k->val.pos;
+    if (!strcmp(v, "pwl"))
+        return SOLVER_PWL;
+    if (!strcmp(v, "newton"))
+        return SOLVER_NEWTON;
+    if (!strcmp(v, "omega"))
+        return SOLVER_OMEGA;
+    error_at(k->val.pos, "solver= takes pwl, newton or omega");
+}
+
+static Expr *key_or(Elab *E, Scope *S, Line *l, const char *k, double def) {
+    KeyVal *kv = key(l, k);
+    return kv ? value_expr(E, S, &kv->val, k) : expr_num(def, l->pos);
+}
+
+/* curve=(v0:i0 v1:i1 ...): points of a monotone, passive v-i curve */
+static void curve(Line *l, NlSpec *nl) {
+    KeyVal *k = key(l, "curve");
+    if (!k)
+        error_at(l->namepos, "nonlinear resistor '%s' needs curve=(v0:i0 v1:i1 ...)", l->name);
+    if (k->val.kind != VAL_LIST)
+        error_at(k->val.pos, "curve= takes a list of points in parentheses, (v0:i0 v1:i1 ...)");
+    int n = k->val.ntoks;
+    const Token *t = k->val.toks;
+    nl->cv = arena_alloc(sizeof(double) * (size_t)(n / 3 + 2));
+    nl->ci = arena_alloc(sizeof(double) * (size_t)(n / 3 + 2));
+    for (int i = 0; i < n; i += 3) {
+        if (i + 2 >= n || t[i + 1].len != 1 || t[i + 1].text[0] != ':')
+            error_at(t[i].pos, "expected a point v:i in the curve");
+        for (int j = 0; j < 3; j += 2)
+            if (t[i + j].kind != TK_NUMBER)
+                error_at(t[i + j].pos, "malformed number '%.*s' in the curve", t[i + j].len, t[i + j].text);
+        int m = nl->npts++;
+        nl->cv[m] = t[i].num;
+        nl->ci[m] = t[i + 2].num;
+        if (m > 0 && !(nl->cv[m] > nl->cv[m - 1]))
+            error_at(t[i].pos, "curve voltages must increase from point to point");
+        if (m > 0 && nl->ci[m] < nl->ci[m - 1])
+            error_at(t[i + 2].pos, "curve currents must not decrease (a falling curve has no unique wave map)");
+        if (nl->cv[m] * nl->ci[m] < 0)
+            error_at(t[i].pos, "point %g:%g delivers power: a passive curve has v*i >= 0", nl->cv[m], nl->ci[m]);
+    }
+    if (nl->npts < 2)
+        error_at(k->val.pos, "a curve needs at least two points");
+    /* the current at v = 0, on the curve or its extension, must be 0 */
+    int a = 0;
+    while (a + 2 < nl->npts && nl->cv[a + 1] < 0)
+        a++;
+    double v0 = nl->cv[a], v1 = nl->cv[a + 1];
+    double i0 = nl->ci[a] + (0 - v0) * (nl->ci[a + 1] - nl->ci[a]) / (v1 - v0);
+    if (fabs(i0) > 1e-12 * (fabs(nl->ci[0]) + fabs(nl->ci[nl->npts - 1])))
+        error_at(k->val.pos, "the curve passes v = 0 at i = %g: a passive curve goes through the origin", i0);
+}
+
+static NlSpec *nonlinear(Elab *E, Scope *S, Line *l) {
+    NlSpec *nl = arena_alloc(sizeof(NlSpec));
+    Line *src = l;
+    if (l->kind == BK_D) { /* the model's keys, then the element's own */
+        Line *m = find_model(E, &l->args[2]);
+        src = arena_alloc(sizeof(Line));
+        *src = *l;
+        src->kv = arena_alloc(sizeof(KeyVal) * (size_t)(l->nkv + m->nkv + 1));
+        src->nkv = 0;
+        for (int i = 0; i < l->nkv; i++)
+            src->kv[src->nkv++] = l->kv[i];
+        for (int i = 0; i < m->nkv; i++)
+            if (!key(l, m->kv[i].key))
+                src->kv[src->nkv++] = m->kv[i];
+    }
+    nl->solver = solver_of(src, nl);
+    switch (l->kind) {
+    case BK_D: {
+        nl->kind = NL_DIODE;
+        nl->Is = key_or(E, S, src, "Is", 1e-14);
+        nl->n = key_or(E, S, src, "n", 1);
+        nl->Vt = key_or(E, S, src, "Vt", 25.852e-3);
+        KeyVal *pk = key(src, "pair");
+        if (pk) {
+            Expr *pe = value_expr(E, S, &pk->val, "pair");
+            if (!expr_is_const(pe) || (expr_eval(pe, NULL) != 0 && expr_eval(pe, NULL) != 1))
+                error_at(pk->val.pos, "pair= takes 0 or 1");
+            nl->pair = expr_eval(pe, NULL) == 1;
+        }
+        break;
+    }
+    case BK_NLRES:
+        nl->kind = NL_CURVE;
+        curve(src, nl);
+        if (nl->solver != SOLVER_DEFAULT && nl->solver != SOLVER_PWL)
+            error_at(nl->solver_pos, "a curve given by points is solved exactly by its piecewise-linear wave map: "
+                     "use solver=pwl");
+        nl->solver = SOLVER_PWL;
+        break;
+    case BK_CONTACT:
+        nl->kind = NL_CONTACT;
+        nl->k = need_key(E, S, src, "k");
+        nl->alpha = key_or(E, S, src, "alpha", 1);
+        nl->lambda = key_or(E, S, src, "lambda", 0);
+        nl->gap = key_or(E, S, src, "gap", 0);
+        if (nl->solver != SOLVER_DEFAULT && nl->solver != SOLVER_NEWTON)
+            error_at(nl->solver_pos, "a contact has memory (its compression): only solver=newton applies");
+        nl->solver = SOLVER_NEWTON;
+        break;
+    }
+    if (nl->solver == SOLVER_OMEGA && nl->kind != NL_DIODE)
+        error_at(nl->solver_pos, "solver=omega solves diodes only");
+    return nl;
+}
+
 static void instantiate(Elab *E, Scope *S, Line *l);
 
 static void element(Elab *E, Scope *S, Line *l) {
@@ -554,6 +669,10 @@ static void element(Elab *E, Scope *S, Line *l) {
     case BK_DAMPER:
         e = add_elem(E, S, l, E_R, "", node[0], node[1]);
         e->val = div1(need_key(E, S, l, "c"));
+        break;
+    case BK_D: case BK_NLRES: case BK_CONTACT:
+        e = add_elem(E, S, l, E_NL, "", node[0], node[1]);
+        e->nl = nonlinear(E, S, l);
         break;
     case BK_POT: {
         Expr *R = need_key(E, S, l, "R"), *pos = need_key(E, S, l, "pos");
@@ -715,6 +834,29 @@ static void apply_ics(Elab *E) {
 
 /* ---- checks ---- */
 
+static void check_nl(const Circuit *c, const Elem *e, const double *p) {
+    (void)c;
+    const NlSpec *nl = e->nl;
+    typedef struct { Expr *x; const char *name; double lo; bool strict; } Bound;
+    Bound k[4];
+    int n = 0;
+    if (nl->kind == NL_DIODE) {
+        k[n++] = (Bound){nl->Is, "Is", 0, true};
+        k[n++] = (Bound){nl->n, "n", 0, true};
+        k[n++] = (Bound){nl->Vt, "Vt", 0, true};
+    } else if (nl->kind == NL_CONTACT) {
+        k[n++] = (Bound){nl->k, "k", 0, true};
+        k[n++] = (Bound){nl->alpha, "alpha", 1, false};
+        k[n++] = (Bound){nl->lambda, "lambda", 0, false};
+    }
+    for (int i = 0; i < n; i++) {
+        double v = expr_eval(k[i].x, p);
+        if (!isfinite(v) || (k[i].strict ? !(v > k[i].lo) : !(v >= k[i].lo)))
+            error_at(e->pos, "%s '%s' has %s = %g; it must be %s %g", block_desc[e->user_kind].desc, e->name,
+                     k[i].name, v, k[i].strict ? "greater than" : "at least", k[i].lo);
+    }
+}
+
 static void check_values(Elab *E) {
     Circuit *c = E->c;
     double *p = circuit_defaults(c);
@@ -724,6 +866,10 @@ static void check_values(Elab *E) {
             continue;
         if (e->kind == E_I && !e->val)
             continue;
+        if (e->kind == E_NL) {
+            check_nl(c, e, p);
+            continue;
+        }
         double v = elem_value(c, e, p);
         if (!(v > 0) || !isfinite(v))
             error_at(e->pos, "%s '%s' has %s %g at the default params; it must be positive and finite",
@@ -901,7 +1047,7 @@ const char *domain_unit(Domain d, char fn) {
 }
 
 void circuit_dump(const Circuit *c, FILE *out) {
-    static const char *kn[] = {"R", "C", "L", "V", "I"};
+    static const char *kn[] = {"R", "C", "L", "V", "I", "NL"};
     double *p = circuit_defaults(c);
     fprintf(out, "voice %s, %d nodes, %d elements, rate %g\n", c->name, c->nnodes, c->nelems, c->rate);
     for (int i = 0; i < c->nelems; i++) {

@@ -10,7 +10,8 @@
 
 #include "gen.h"
 
-extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[];
+extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode[], tmpl_nl_omega[],
+    tmpl_nl_pwl[], tmpl_nl_contact[];
 
 typedef struct Buf {
     char *s;
@@ -54,6 +55,12 @@ typedef struct Ctx {
     const char **b;  /* tree node -> C expression of its reflected wave */
     const char **bpost; /* the same after the backward pass */
     const char **a;  /* tree node -> C expression of its incident wave */
+    const EmitOpts *opt;
+    int nnl;         /* nonlinear root edges */
+    int npwl;        /* points in all piecewise-linear tables */
+    int *pwl_off;    /* nonlinear index -> first point of its table */
+    int *pwl_n;      /* nonlinear index -> points in its table, 0: none */
+    double **pwl_v, **pwl_i; /* Kirchhoff points of each table */
 } Ctx;
 
 static const char *lit(Ctx *x, double v) {
@@ -138,6 +145,22 @@ static void emit_update(Ctx *x, Buf *o) {
                  x->koff[n->id] + k, n->child[k]->id);
         emit(o, "    }\n");
     }
+    const Root *r = &x->w->root;
+    for (int k = 0; k < r->nnl; k++) {
+        const Elem *e = &c->elems[r->edge[r->nport + k].elem];
+        const NlSpec *nl = e->nl;
+        Expr *v[4] = {NULL, NULL, NULL, NULL};
+        if (nl->kind == NL_DIODE) {
+            v[0] = nl->Is;
+            v[1] = expr_bin(EX_MUL, nl->n, nl->Vt);
+        } else if (nl->kind == NL_CONTACT) {
+            v[0] = nl->k, v[1] = nl->alpha, v[2] = nl->lambda, v[3] = nl->gap;
+        }
+        for (int j = 0; j < 4; j++)
+            if (v[j])
+                emit(o, "    %s /* %s */\n        st->c_nl[%d] = (real)(%s);\n", guard(expr_params(v[j])), e->name,
+                     4 * k + j, cexpr(x, v[j]));
+    }
     emit(o, "    %s\n        root_solve(st);\n", guard(x->w->root.pmask));
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
@@ -168,6 +191,7 @@ static void emit_forward(Ctx *x, Buf *o) {
                 emit(o, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
                 x->b[i] = format("t_b%d", i);
                 break;
+            case E_NL: unreachable();
             }
             continue;
         }
@@ -194,13 +218,65 @@ static void emit_forward(Ctx *x, Buf *o) {
 /* input j of the root: b of a port or the drive of a source */
 static const char *root_in(Ctx *x, int j) {
     const RootEdge *e = &x->w->root.edge[j];
+    if (e->kind == 3)
+        return format("t_bn%d", j - x->w->root.nport);
     return e->kind == 0 ? x->b[e->node->id] : drive_of(x, &x->c->elems[e->elem]);
+}
+
+static Solver solver_of(Ctx *x, const NlSpec *nl) {
+    return nl->solver != SOLVER_DEFAULT ? nl->solver : x->opt->solver != SOLVER_DEFAULT ? x->opt->solver
+                                                                                      : SOLVER_NEWTON;
+}
+
+/* The wave a nonlinear edge reflects, from the wave the root sends it. */
+static void emit_nl_solve(Ctx *x, Buf *o, int k) {
+    const Elem *e = &x->c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+    const NlSpec *nl = e->nl;
+    const char *tol = format("%.17g", x->opt->tol);
+    int it = x->opt->maxit;
+    emit(o, "        real t_bn%d; /* %s (%s:%d:%d) */\n        {\n", k, e->name, e->pos.file->path, e->pos.line,
+         e->pos.col);
+    switch (nl->kind == NL_CONTACT ? SOLVER_NEWTON : solver_of(x, nl)) {
+    case SOLVER_PWL:
+        emit(o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
+        emit(o, "            (void)s_nv%d;\n", k);
+        break;
+    case SOLVER_OMEGA:
+        emit(o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
+             nl->pair, tol, it);
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
+        break;
+    default:
+        if (nl->kind == NL_CONTACT) {
+            emit(o, "            const double t_v = contact_solve(t_an%d, k_Rn%d, s_nX%d, s_nv%d, k_T, c_nl%d_0, c_nl%d_1, "
+                    "c_nl%d_2, c_nl%d_3, %s, %d);\n", k, k, k, k, k, k, k, k, tol, it);
+            emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
+        } else {
+            emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
+                 k, k, k, k, nl->pair, k, tol, it);
+        }
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
+        break;
+    }
+    emit(o, "        }\n");
 }
 
 static void emit_root(Ctx *x, Buf *o) {
     const Root *r = &x->w->root;
     emit(o, "        /* root */\n");
+    for (int k = r->nport; k < r->nport + r->nnl; k++) {
+        Buf t = {0};
+        for (int j = 0; j < r->nedge; j++) {
+            const char *in = root_in(x, j);
+            if (j != k && !is_zero(in))
+                emit(&t, "%sm_%d_%d * %s", t.len ? " + " : "", k, j, in);
+        }
+        emit(o, "        const real t_an%d = %s;\n", k - r->nport, t.len ? str(&t) : lit(x, 0));
+        emit_nl_solve(x, o, k - r->nport);
+    }
     for (int k = 0; k < r->nedge; k++) {
+        if (r->edge[k].kind == 3)
+            continue;
         Buf t = {0};
         for (int j = 0; j < r->nedge; j++) {
             const char *in = root_in(x, j);
@@ -268,8 +344,13 @@ static const char *elem_v(Ctx *x, int ei) {
                           : format("%s * (t_a%d + %s)", lit(x, 0.5), n->id, b);
     }
     for (int k = 0; k < x->w->root.nedge; k++)
-        if (x->w->root.edge[k].elem == ei)
+        if (x->w->root.edge[k].elem == ei) {
+            if (e->kind == E_NL) {
+                int n = k - x->w->root.nport;
+                return format("%s * (t_an%d + t_bn%d)", lit(x, 0.5), n, n);
+            }
             return e->kind == E_V ? drive_of(x, e) : format("t_r%d", k);
+        }
     unreachable();
 }
 
@@ -282,8 +363,13 @@ static const char *elem_i(Ctx *x, int ei) {
                           : format("k_g%d * (t_a%d - %s)", n->id, n->id, b);
     }
     for (int k = 0; k < x->w->root.nedge; k++)
-        if (x->w->root.edge[k].elem == ei)
+        if (x->w->root.edge[k].elem == ei) {
+            if (e->kind == E_NL) {
+                int n = k - x->w->root.nport;
+                return format("k_gn%d * (t_an%d - t_bn%d)", n, n, n);
+            }
             return e->kind == E_I ? drive_of(x, e) : format("t_r%d", k);
+        }
     unreachable();
 }
 
@@ -354,6 +440,19 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
     emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
     emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
     emit(wb, "    st->s_work = s_work;\n");
+    if (x->nnl)
+        emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
+    for (int k = 0; k < x->nnl; k++) {
+        emit(o, "    const real k_Rn%d = st->c_Rn[%d], k_gn%d = (real)(0.5 / st->c_Rn[%d]);\n", k, k, k, k);
+        emit(o, "    (void)k_Rn%d;\n    (void)k_gn%d;\n", k, k);
+        for (int j = 0; j < 4; j++)
+            emit(o, "    const double c_nl%d_%d = st->c_nl[%d];\n    (void)c_nl%d_%d;\n", k, j, 4 * k + j, k, j);
+        emit(o, "    real s_nX%d = st->s_nX[%d], s_nv%d = st->s_nv[%d];\n", k, k, k, k);
+        emit(wb, "    st->s_nX[%d] = s_nX%d;\n    st->s_nv[%d] = flush(s_nv%d);\n", k, k, k, k);
+        if (x->pwl_n[k])
+            emit(o, "    const real *const c_pa%d = st->c_pa + %d, *const c_pb%d = st->c_pb + %d, "
+                    "*const c_ps%d = st->c_ps + %d;\n", k, x->pwl_off[k], k, x->pwl_off[k], k, x->pwl_off[k]);
+    }
     for (int i = 0; i < c->ninputs; i++)
         emit(o, "    const double *const in%d = in[%d];\n", i, i);
     for (int i = 0; i < x->nk; i++)
@@ -413,6 +512,14 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
         if (x->src[i] >= 0 && e->input < 0)
             emit(o, "    st->s_we[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
     }
+    for (int k = 0; k < x->nnl; k++) {
+        const Elem *e = &c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+        if (e->nl->kind == NL_CONTACT)
+            emit(o, "    st->s_nX[%d] = (real)(%s - %s);\n", k, ic_node_value(x, 'x', e->n[0]),
+                 ic_node_value(x, 'x', e->n[1]));
+        emit(probes, "        st->s_nv[%d] = (real)((%s) - (%s));\n", k,
+             e->n[0] ? format("x[%d]", e->n[0] - 1) : "0", e->n[1] ? format("x[%d]", e->n[1] - 1) : "0");
+    }
     int xp = 0;
     for (int k = 0; k < c->nouts; k++) {
         const Probe *p = &c->outs[k];
@@ -428,6 +535,13 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
 }
 
 static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
+    for (int k = 0; k < x->nnl; k++) {
+        const Elem *e = &x->c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+        if (e->nl->kind == NL_CONTACT)
+            emit(o, "    { double X = st->s_nX[%d] - st->c_nl[%d], al = st->c_nl[%d]; "
+                    "if (X > 0) E += st->c_nl[%d] * pow(X, al + 1) / (al + 1); } /* %s */\n",
+                 k, 4 * k + 3, 4 * k + 1, 4 * k, e->name);
+    }
     for (int i = 0; i < x->w->nnodes; i++) {
         int r = x->react[i];
         if (r < 0)
@@ -469,6 +583,12 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                     emit(cases, "            react[%d] = %s values[k] / (0.5 * st->c_R[%d] / st->fs);\n",
                          x->react[i], sg > 0 ? "" : "-", i);
             }
+            for (int k = 0; k < x->nnl && fn == 'x'; k++) {
+                const Elem *e = &c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+                int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
+                if (sg && e->nl->kind == NL_CONTACT)
+                    emit(cases, "            st->s_nX[%d] = (real)(%svalues[k]);\n", k, sg > 0 ? "" : "-");
+            }
             int xp = 0;
             for (int k = 0; k < c->nouts; k++)
                 if (c->outs[k].kind == PR_X) {
@@ -478,6 +598,44 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                 }
             emit(cases, "            break;\n");
         }
+}
+
+/* ---- nonlinear elements: kernels, tables, hooks ---- */
+
+static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *force) {
+    const Root *r = &x->w->root;
+    bool diode = false, omega = false, pwl = false, contact = false;
+    for (int k = 0; k < r->nnl; k++) {
+        const Elem *e = &x->c->elems[r->edge[r->nport + k].elem];
+        if (e->nl->kind == NL_CONTACT) {
+            contact = true;
+            emit(force, "    if (k == %d) { double dX, dXd; return contact_f(st->s_nX[%d] - st->c_nl[%d], 0, "
+                        "st->c_nl[%d], st->c_nl[%d], 0, &dX, &dXd); }\n", k, k, 4 * k + 3, 4 * k, 4 * k + 1);
+        } else if (x->pwl_n[k]) {
+            pwl = true;
+            Buf v = {0}, i = {0};
+            for (int j = 0; j < x->pwl_n[k]; j++) {
+                emit(&v, "%s%.17g", j ? ", " : "", x->pwl_v[k][j]);
+                emit(&i, "%s%.17g", j ? ", " : "", x->pwl_i[k][j]);
+            }
+            emit(tables, "/* %s: Kirchhoff points of its piecewise-linear map (V, A) */\n", e->name);
+            emit(tables, "static const double nl_v%d[] = {%s};\nstatic const double nl_i%d[] = {%s};\n", k, str(&v),
+                 k, str(&i));
+            emit(retune, "    pwl_table(nl_v%d, nl_i%d, %d, st->c_Rn[%d], st->c_pa + %d, st->c_pb + %d, st->c_ps + %d);\n",
+                 k, k, x->pwl_n[k], k, x->pwl_off[k], x->pwl_off[k], x->pwl_off[k]);
+        } else {
+            diode = true;
+            omega |= solver_of(x, e->nl) == SOLVER_OMEGA;
+        }
+    }
+    if (diode)
+        emit(kernels, "%s", tmpl_nl_diode);
+    if (omega)
+        emit(kernels, "%s", tmpl_nl_omega);
+    if (pwl)
+        emit(kernels, "%s", tmpl_nl_pwl);
+    if (contact)
+        emit(kernels, "%s", tmpl_nl_contact);
 }
 
 /* ---- tables and descriptors ---- */
@@ -527,7 +685,8 @@ static const char *root_table(Ctx *x) {
     emit(&b, "{");
     for (int k = 0; k < r->nedge; k++) {
         const RootEdge *e = &r->edge[k];
-        emit(&b, "%s{%d, %d, %d, %d}", k ? ", " : "", e->kind, e->p, e->q, e->kind == 0 ? e->node->id : -1);
+        emit(&b, "%s{%d, %d, %d, %d}", k ? ", " : "", e->kind, e->p, e->q,
+             e->kind == 0 ? e->node->id : e->kind == 3 ? k - r->nport : -1);
     }
     emit(&b, "}");
     return str(&b);
@@ -548,11 +707,16 @@ static const char *ic_table(Ctx *x, int *nv) {
         case E_L: kind = 2; break;
         case E_V: kind = e->val ? 5 : 3; break;
         case E_I: kind = e->val ? 6 : 4; break;
+        case E_NL: kind = e->nl->kind == NL_CONTACT ? 8 : 7; break;
         default: unreachable();
         }
         *nv += kind == 1 || kind == 3;
+        int nli = -1;
+        for (int k = 0; k < x->w->root.nedge; k++)
+            if (x->w->root.edge[k].kind == 3 && x->w->root.edge[k].elem == i)
+                nli = k - x->w->root.nport;
         emit(&b, "%s{%d, %d, %d, %d, %d, %d}", i ? ", " : "", kind, e->n[0], e->n[1], n ? n->id : -1,
-             n ? x->react[n->id] : -1, x->src[i]);
+             n ? x->react[n->id] : nli, x->src[i]);
     }
     emit(&b, "}");
     return str(&b);
@@ -578,11 +742,19 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s s_we[%d];    /* sources: last drive */\n"
         "    %s s_wi[%d];    /* sources: last current (V) or voltage (I) */\n"
         "    double s_work;         /* work done by the sources since reset */\n"
+        "    %s c_Rn[%d];    /* nonlinear edges: adapted port resistance */\n"
+        "    %s c_nl[%d];    /* nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact) */\n"
+        "    %s s_nX[%d];    /* contacts: x(n0) - x(n1), m */\n"
+        "    %s s_nv[%d];    /* nonlinear edges: last voltage (velocity) across */\n"
+        "    %s c_pa[%d];    /* piecewise-linear wave maps: a at the breakpoints */\n"
+        "    %s c_pb[%d];    /* b at the breakpoints */\n"
+        "    %s c_ps[%d];    /* slope db/da of each segment */\n"
         "    double w_A[%d];        /* solve workspace (control rate only) */\n"
         "    double w_x[%d];\n"
         "    int w_piv[%d];",
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, ne * ne, r, M1(x->nsrc), r, M1(x->nreact), r,
-        M1(x->nreact), r, M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), nd * nd, nd, nd);
+        M1(x->nreact), r, M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
+        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), nd * nd, nd, nd);
 #undef M1
 }
 
@@ -627,6 +799,33 @@ static int write_text(const char *path, const char *text) {
     return ok ? 0 : -1;
 }
 
+/* Kirchhoff points of a piecewise-linear table: a curve's own, or a
+ * diode's sampled evenly in v over +-nVt ln(1 + 1 A / Is), the voltage at
+ * which it carries 1 A. */
+static void pwl_points(Ctx *x, const Elem *e, int k) {
+    const NlSpec *nl = e->nl;
+    if (nl->kind == NL_CURVE) {
+        x->pwl_n[k] = nl->npts;
+        x->pwl_v[k] = nl->cv;
+        x->pwl_i[k] = nl->ci;
+        return;
+    }
+    if (expr_params(nl->Is) || expr_params(nl->n) || expr_params(nl->Vt))
+        error_at(e->pos, "diode '%s': a piecewise-linear table is made at compile time, so Is, n and Vt must "
+                 "not depend on params (use solver=newton or omega)", e->name);
+    double Is = expr_eval(nl->Is, NULL), nVt = expr_eval(nl->n, NULL) * expr_eval(nl->Vt, NULL);
+    int n = x->opt->table;
+    double vmax = nVt * log(1 + 1 / Is);
+    x->pwl_n[k] = n;
+    x->pwl_v[k] = arena_alloc(sizeof(double) * (size_t)n);
+    x->pwl_i[k] = arena_alloc(sizeof(double) * (size_t)n);
+    for (int j = 0; j < n; j++) {
+        double v = -vmax + 2 * vmax * j / (n - 1);
+        x->pwl_v[k][j] = v;
+        x->pwl_i[k][j] = nl->pair ? 2 * Is * sinh(v / nVt) : Is * expm1(v / nVt);
+    }
+}
+
 static void index_tree(Ctx *x) {
     const Wdf *w = x->w;
     const Circuit *c = x->c;
@@ -644,13 +843,27 @@ static void index_tree(Ctx *x) {
         if (n->kind != W_LEAF)
             x->nk += n->nchild;
     }
+    const Root *r = &w->root;
+    x->nnl = r->nnl;
+    x->pwl_off = arena_alloc(sizeof(int) * (size_t)(r->nnl + 1));
+    x->pwl_n = arena_alloc(sizeof(int) * (size_t)(r->nnl + 1));
+    x->pwl_v = arena_alloc(sizeof(double *) * (size_t)(r->nnl + 1));
+    x->pwl_i = arena_alloc(sizeof(double *) * (size_t)(r->nnl + 1));
+    for (int k = 0; k < r->nnl; k++) {
+        const Elem *e = &c->elems[r->edge[r->nport + k].elem];
+        if (e->nl->kind == NL_CONTACT || solver_of(x, e->nl) != SOLVER_PWL)
+            continue;
+        pwl_points(x, e, k);
+        x->pwl_off[k] = x->npwl;
+        x->npwl += x->pwl_n[k];
+    }
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
     for (int i = 0; i < c->nelems; i++)
         x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
 }
 
 int emit_voice(const Wdf *w, const EmitOpts *opt) {
-    Ctx x = {.w = w, .c = w->c, .single = opt->single};
+    Ctx x = {.w = w, .c = w->c, .single = opt->single, .opt = opt};
     const Circuit *c = w->c;
     index_tree(&x);
     Buf update = {0}, sample = {0}, hoist = {0}, wb = {0}, reset = {0}, probes = {0}, energy = {0},
@@ -667,15 +880,17 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);
     emit_ic_cases(&x, &targets, &cases);
+    Buf kernels = {0}, tables = {0}, retune = {0}, force = {0};
+    emit_nonlinear(&x, &kernels, &tables, &retune, &force);
     int nicv;
     const char *ictab = ic_table(&x, &nicv);
     int ncore = w->root.ncore + w->root.nv, nicn = c->nnodes - 1 + nicv;
     int nd = ncore > nicn ? ncore : nicn;
     const char *real = opt->single ? "float" : "double";
     const char *options = format("precision %s, rate %g Hz by default", real, c->rate);
-    const char *summary = format("%d elements, %d nodes; %d adaptors and leaves, a root adaptor with %d ports "
-                                 "and %d ideal sources.", c->nelems, c->nnodes, w->nnodes, w->root.nport,
-                                 w->root.nedge - w->root.nport);
+    const char *summary = format("%d elements, %d nodes; %d adaptors and leaves, a root adaptor with %d ports, "
+                                 "%d nonlinear elements and %d ideal sources.", c->nelems, c->nnodes, w->nnodes,
+                                 w->root.nport, w->root.nnl, w->root.nedge - w->root.nport - w->root.nnl);
     char *guard = format("WDV_%s_H", c->name);
     for (char *g = guard; *g; g++)
         *g = (char)(*g >= 'a' && *g <= 'z' ? *g - 32 : *g);
@@ -693,6 +908,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         {"ic_cases", str(&cases)}, {"hoist", str(&hoist)}, {"sample", str(&sample)},
         {"writeback", str(&wb)}, {"precision", opt->single ? "32" : "64"},
         {"n_inputs", format("%d", c->ninputs)}, {"n_outputs", format("%d", c->nouts)},
+        {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"nl_retune", str(&retune)},
+        {"nl_force", str(&force)},
     };
     int nh = (int)(sizeof holes / sizeof holes[0]);
     const char *ctext = fill(tmpl_voice_c, holes, nh);

@@ -254,7 +254,33 @@ typedef enum {
     E_L, /* inductor: val = inductance (H) */
     E_V, /* voltage source: v(n0)-v(n1) = drive + val*i; val NULL: ideal */
     E_I, /* current source: drive flows n0 -> n1 through it; val: parallel R */
+    E_NL, /* nonlinear one-port (diode, curve, contact): see NlSpec */
 } ElemKind;
+
+typedef enum {
+    NL_DIODE,   /* i = Is (exp(v/(n Vt)) - 1), or 2 Is sinh(v/(n Vt)) for a pair */
+    NL_CURVE,   /* i = f(v), piecewise linear through given points */
+    NL_CONTACT, /* i = k X^alpha (1 + lambda dX/dt) for X > 0, X = x(n0) - x(n1) - gap */
+} NlKind;
+
+typedef enum {
+    SOLVER_DEFAULT, /* the command line's choice */
+    SOLVER_PWL,     /* piecewise-linear wave map, explicit */
+    SOLVER_NEWTON,  /* damped, bracketed Newton with a hard iteration cap */
+    SOLVER_OMEGA,   /* Wright omega closed form (diodes) */
+} Solver;
+
+/* A nonlinear element.  Its current flows from n0 to n1 through it. */
+typedef struct NlSpec {
+    NlKind kind;
+    Expr *Is, *n, *Vt;   /* diode: saturation current (A), ideality, thermal voltage (V) */
+    bool pair;           /* diode: antiparallel pair */
+    double *cv, *ci;     /* curve: points (V, A), v strictly increasing */
+    int npts;
+    Expr *k, *alpha, *lambda, *gap; /* contact: N/m^alpha, exponent, s/m, m */
+    Solver solver;
+    SrcPos solver_pos;
+} NlSpec;
 
 typedef struct Elem {
     ElemKind kind;
@@ -264,6 +290,7 @@ typedef struct Elem {
     int input;         /* sources: index of the driving input, or -1 */
     Expr *drive;       /* sources without input: control-rate value */
     Expr *ic;          /* C: initial voltage, L: initial current, or NULL */
+    NlSpec *nl;        /* E_NL: the nonlinearity */
     SrcPos pos;
     int user_kind;     /* BlockKind it came from */
 } Elem;
@@ -351,7 +378,8 @@ struct WNode {
 
 /* One edge of the root adaptor: a subtree's port or an ideal source. */
 typedef struct RootEdge {
-    int kind;   /* 0: port of subtree `node`, 1: ideal V source, 2: ideal I */
+    int kind;   /* 0: port of subtree `node`, 1: ideal V source, 2: ideal I,
+                   3: nonlinear element (its port adapted to the core) */
     WNode *node;
     int elem;   /* sources: element index */
     int p, q;   /* core node indices (-1: the reference node) */
@@ -363,11 +391,14 @@ typedef struct Root {
     int ref_node;      /* graph node used as reference */
     RootEdge *edge;
     int nedge;
-    int nport;         /* ports first in edge[], then sources */
+    int nport;         /* ports first in edge[], then nonlinear edges, then sources */
+    int nnl;           /* nonlinear edges (at most one) */
     int nv;            /* ideal voltage sources among the edges */
-    /* M (nedge x nedge, row-major): outputs [a of each port; i of each
-     * V source, v of each I source] from inputs [b of each port; drive
-     * of each source], at the default params and rate. */
+    double *R;         /* port resistance of each port and nonlinear edge */
+    /* M (nedge x nedge, row-major): outputs [a of each port and
+     * nonlinear edge; i of each V source, v of each I source] from inputs
+     * [b of each port and nonlinear edge; drive of each source], at the
+     * default params and rate. */
     double *M;
     uint64_t pmask;    /* params M depends on */
 } Root;
@@ -394,6 +425,11 @@ void wdf_dump(const Wdf *w, FILE *out);
 /* Solves the root adaptor's matrix M for port resistances R (one per port
  * edge) and returns 0, or -1 if the core is singular. */
 int scatter_root(const Root *r, const double *R, double *M);
+/* Resistance the core presents to edge k (ideal V sources shorted, ideal I
+ * sources open, other ports and nonlinear edges at R): the port
+ * resistance that adapts a nonlinear edge.  Returns 0, or -1 if the edge
+ * has no closed path through the rest of the core (infinite resistance). */
+int scatter_thevenin(const Root *r, const double *R, int k, double *Rth);
 /* Scattering matrix of an adaptor (ports: up port first, then children),
  * n x n row-major; for the root, the port-to-port block. */
 void scatter_node(const WNode *n, double *S);
@@ -404,6 +440,10 @@ double scatter_check(const Wdf *w, double tol);
 
 typedef struct EmitOpts {
     bool single;        /* float precision */
+    Solver solver;      /* for nonlinear elements that name none */
+    int table;          /* points of a diode's piecewise-linear table */
+    double tol;         /* Newton: relative step tolerance */
+    int maxit;          /* Newton: iteration cap */
     const char *outdir;
     const char *tmpldir; /* templates/ */
 } EmitOpts;

@@ -17,6 +17,9 @@ typedef struct Opts {
     int ninputs;
     double seconds, rate;
     bool check, single, dump_elab, dump_wdf;
+    Solver solver;
+    int table, maxit;
+    double tol;
 } Opts;
 
 static void usage(FILE *f) {
@@ -26,6 +29,7 @@ static void usage(FILE *f) {
         "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
         "                    [--csv OUT.csv] [--events FILE]\n"
         "       wdc FILE.wdn --dot OUT.dot\n"
+        "nonlinear elements: [--solver newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
         "SPEC: impulse[:A] | step[:A] | sine:FREQ[:A] | noise[:A] | FILE.wav (one per .input, in order)\n"
         "-delab, -dwdf print the elaborated circuit or the adaptor tree.\n"
         "exit status: 0 ok, 1 netlist error, 2 usage error, 3 toolchain or internal error\n");
@@ -48,7 +52,7 @@ static double number_arg(const char *opt, const char *s) {
 }
 
 static Opts parse_args(int argc, char **argv) {
-    Opts o = {.outdir = "out"};
+    Opts o = {.outdir = "out", .table = 256, .tol = 1e-12, .maxit = 50};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *next = i + 1 < argc ? argv[i + 1] : NULL;
@@ -73,6 +77,24 @@ static Opts parse_args(int argc, char **argv) {
             if (o.ninputs == 16)
                 usage_error("too many --input options (%s)", "16 at most");
             o.inputs[o.ninputs++] = TAKE();
+        } else if (!strcmp(a, "--solver")) {
+            const char *v = TAKE();
+            o.solver = !strcmp(v, "newton") ? SOLVER_NEWTON : !strcmp(v, "omega") ? SOLVER_OMEGA
+                     : !strcmp(v, "pwl") ? SOLVER_PWL : SOLVER_DEFAULT;
+            if (o.solver == SOLVER_DEFAULT)
+                usage_error("--solver takes newton, omega or pwl, not '%s'", v);
+        } else if (!strcmp(a, "--table")) {
+            double v = number_arg(a, TAKE());
+            if (v < 2 || v > 1e6 || v != (int)v)
+                usage_error("--table takes a whole number of points from 2 to 1000000, not '%s'", argv[i]);
+            o.table = (int)v;
+        } else if (!strcmp(a, "--maxit")) {
+            double v = number_arg(a, TAKE());
+            if (v > 1000 || v != (int)v)
+                usage_error("--maxit takes a whole number from 1 to 1000, not '%s'", argv[i]);
+            o.maxit = (int)v;
+        } else if (!strcmp(a, "--tol")) {
+            o.tol = number_arg(a, TAKE());
         } else if (!strcmp(a, "--precision")) {
             const char *p = TAKE();
             if (strcmp(p, "float") && strcmp(p, "double"))
@@ -403,8 +425,12 @@ int main(int argc, char **argv) {
     }
     if (o.check || (o.dot && !o.render))
         return 0;
-    EmitOpts eo = {.single = o.single, .outdir = o.outdir};
-    if (mkdir_p(o.outdir) != 0 || emit_voice(w, &eo) != 0) {
+    EmitOpts eo = {.single = o.single, .outdir = o.outdir, .solver = o.solver, .table = o.table, .tol = o.tol,
+                   .maxit = o.maxit};
+    diag.jmp = &jb;
+    int emitted = mkdir_p(o.outdir) == 0 ? emit_voice(w, &eo) : -1;
+    diag.jmp = NULL;
+    if (emitted != 0) {
         fprintf(stderr, "wdc: error: cannot write the voice to '%s': %s\n", o.outdir, strerror(errno));
         return EXIT_USAGE;
     }

@@ -6,53 +6,89 @@
 
 #include "gen.h"
 
-int scatter_root(const Root *r, const double *R, double *M) {
-    int nc = r->ncore, D = nc + r->nv, ne = r->nedge;
-    if (D == 0)
-        die("root without core nodes");
+/* The core's nodal matrix (plus one row and column per ideal V source):
+ * ports and nonlinear edges stamp their conductance 1/R, edge `skip` is
+ * left out. */
+static double *core_matrix(const Root *r, const double *R, int skip, int *dim) {
+    int nc = r->ncore, D = nc + r->nv;
     double *A = arena_alloc(sizeof(double) * (size_t)(D * D));
-    double *B = arena_alloc(sizeof(double) * (size_t)(D * ne));
+    int m = 0;
+    for (int k = 0; k < r->nedge; k++) {
+        const RootEdge *e = &r->edge[k];
+        int p = e->p, q = e->q;
+        if (e->kind == 1) {
+            int row = nc + m++;
+            if (p >= 0) { A[p * D + row] += 1; A[row * D + p] += 1; }
+            if (q >= 0) { A[q * D + row] -= 1; A[row * D + q] -= 1; }
+        } else if ((e->kind == 0 || e->kind == 3) && k != skip) {
+            double G = 1 / R[k];
+            if (p >= 0) A[p * D + p] += G;
+            if (q >= 0) A[q * D + q] += G;
+            if (p >= 0 && q >= 0) { A[p * D + q] -= G; A[q * D + p] -= G; }
+        }
+    }
+    *dim = D;
+    return A;
+}
+
+/* LU solve with a singularity test relative to the largest entry. */
+static int solve(double *A, int D, double *B, int nrhs) {
+    double amax = 0;
+    for (int i = 0; i < D * D; i++)
+        amax = fmax(amax, fabs(A[i]));
     int *piv = arena_alloc(sizeof(int) * (size_t)D);
-#define AT(i, j) A[(i) * D + (j)]
+    if (LAPACKE_dgesv(LAPACK_ROW_MAJOR, D, nrhs, A, D, piv, B, nrhs) != 0)
+        return -1;
+    for (int i = 0; i < D; i++)
+        if (fabs(A[i * D + i]) < 1e-13 * fmax(amax, 1))
+            return -1;
+    return 0;
+}
+
+int scatter_thevenin(const Root *r, const double *R, int k, double *Rth) {
+    int D;
+    double *A = core_matrix(r, R, k, &D);
+    double *B = arena_alloc(sizeof(double) * (size_t)D);
+    const RootEdge *e = &r->edge[k];
+    if (e->p >= 0) B[e->p] = 1;
+    if (e->q >= 0) B[e->q] = -1;
+    if (solve(A, D, B, 1) < 0)
+        return -1;
+    *Rth = (e->p >= 0 ? B[e->p] : 0) - (e->q >= 0 ? B[e->q] : 0);
+    return 0;
+}
+
+int scatter_root(const Root *r, const double *R, double *M) {
+    int nc = r->ncore, ne = r->nedge, D;
+    if (nc + r->nv == 0)
+        die("root without core nodes");
+    double *A = core_matrix(r, R, -1, &D);
+    double *B = arena_alloc(sizeof(double) * (size_t)(D * ne));
 #define BT(i, j) B[(i) * ne + (j)]
     int m = 0;
     for (int k = 0; k < ne; k++) {
         const RootEdge *e = &r->edge[k];
         int p = e->p, q = e->q;
-        if (e->kind == 0) {
+        if (e->kind == 0 || e->kind == 3) {
             double G = 1 / R[k];
-            if (p >= 0) { AT(p, p) += G; BT(p, k) += G; }
-            if (q >= 0) { AT(q, q) += G; BT(q, k) -= G; }
-            if (p >= 0 && q >= 0) { AT(p, q) -= G; AT(q, p) -= G; }
+            if (p >= 0) BT(p, k) += G;
+            if (q >= 0) BT(q, k) -= G;
         } else if (e->kind == 1) {
-            int row = nc + m++;
-            if (p >= 0) { AT(p, row) += 1; AT(row, p) += 1; }
-            if (q >= 0) { AT(q, row) -= 1; AT(row, q) -= 1; }
-            BT(row, k) = 1;
+            BT(nc + m++, k) = 1;
         } else {
             if (p >= 0) BT(p, k) -= 1;
             if (q >= 0) BT(q, k) += 1;
         }
     }
-    /* a zero pivot is exact singularity; a tiny one relative to the largest
-     * conductance is singular in practice */
-    double amax = 0;
-    for (int i = 0; i < D * D; i++)
-        amax = fmax(amax, fabs(A[i]));
-    double *A0 = arena_alloc(sizeof(double) * (size_t)(D * D));
-    memcpy(A0, A, sizeof(double) * (size_t)(D * D));
-    if (LAPACKE_dgesv(LAPACK_ROW_MAJOR, D, ne, A, D, piv, B, ne) != 0)
+    if (solve(A, D, B, ne) < 0)
         return -1;
-    for (int i = 0; i < D; i++)
-        if (fabs(AT(i, i)) < 1e-13 * fmax(amax, 1))
-            return -1;
     m = 0;
     for (int k = 0; k < ne; k++) {
         const RootEdge *e = &r->edge[k];
         for (int j = 0; j < ne; j++) {
             double vp = e->p >= 0 ? BT(e->p, j) : 0, vq = e->q >= 0 ? BT(e->q, j) : 0;
             double out;
-            if (e->kind == 0)
+            if (e->kind == 0 || e->kind == 3)
                 out = 2 * (vp - vq) - (j == k);
             else if (e->kind == 1)
                 out = BT(nc + m, j);
@@ -63,7 +99,6 @@ int scatter_root(const Root *r, const double *R, double *M) {
         if (e->kind == 1)
             m++;
     }
-#undef AT
 #undef BT
     return 0;
 }
@@ -127,16 +162,16 @@ double scatter_check(const Wdf *w, double tol) {
         worst = fmax(worst, err);
     }
     const Root *r = &w->root;
-    int np = r->nport, ne = r->nedge;
+    int np = r->nport + r->nnl, ne = r->nedge;
     double *S = arena_alloc(sizeof(double) * (size_t)(np * np + 1));
-    double *R = arena_alloc(sizeof(double) * (size_t)(np + 1));
-    for (int k = 0; k < np; k++) {
-        R[k] = r->edge[k].node->R;
+    for (int k = 0; k < np; k++)
         for (int j = 0; j < np; j++)
             S[k * np + j] = r->M[k * ne + j];
-    }
-    double err = lossless_err(S, R, np);
+    double err = lossless_err(S, r->R, np);
     if (err > tol)
         die("root adaptor is not lossless (error %g)", err);
+    for (int k = r->nport; k < np; k++)
+        if (fabs(S[k * np + k]) > tol)
+            die("nonlinear edge %d of the root is not adapted (S = %g)", k, S[k * np + k]);
     return fmax(worst, err);
 }

@@ -22,7 +22,9 @@ typedef struct Edge {
     bool alive;
 } Edge;
 
-static bool is_ideal(const Elem *e) { return (e->kind == E_V || e->kind == E_I) && !e->val; }
+/* Ideal sources and nonlinear elements cannot be adapted: they go to the
+ * root. */
+static bool at_root(const Elem *e) { return ((e->kind == E_V || e->kind == E_I) && !e->val) || e->kind == E_NL; }
 
 static double leaf_R(const Circuit *c, const Elem *e, const double *p, double fs) {
     double v = elem_value(c, e, p);
@@ -134,6 +136,37 @@ static void number(Wdf *w, WNode *n, Vec *order) {
     vec_push(order, n);
 }
 
+/* One nonlinear element per root: several need a delay between them. */
+static void check_nonlinear(Wdf *wd) {
+    const Root *r = &wd->root;
+    if (r->nnl <= 1)
+        return;
+    const Elem *first = &wd->c->elems[r->edge[r->nport].elem];
+    const Elem *second = &wd->c->elems[r->edge[r->nport + 1].elem];
+    note_at(first->pos, "'%s' is one of them", first->name);
+    for (int k = r->nport + 2; k < r->nport + r->nnl; k++)
+        note_at(wd->c->elems[r->edge[k].elem].pos, "'%s' is another", wd->c->elems[r->edge[k].elem].name);
+    error_at(second->pos, "'%s' and '%s' are coupled with no delay between them: each instantaneously "
+             "coupled part may hold one nonlinear element; a delay element between them (a transmission "
+             "line, string or tube) would decouple them", first->name, second->name);
+}
+
+/* Gives nonlinear edge k the resistance the rest of the core presents to
+ * it, so that the wave the root sends it does not depend on its own. */
+static void adapt_nonlinear(Wdf *wd, int k) {
+    Root *r = &wd->root;
+    const Elem *e = &wd->c->elems[r->edge[k].elem];
+    r->R[k] = 1; /* unused by the solve, which leaves edge k out */
+    double Rth;
+    if (scatter_thevenin(r, r->R, k, &Rth) < 0 || !(Rth < 1e300))
+        error_at(e->pos, "%s '%s' has no closed path through the rest of the network: no current can flow "
+                 "through it", block_desc[e->user_kind].desc, e->name);
+    if (!(Rth > 0))
+        error_at(e->pos, "%s '%s' sits directly across an ideal source: nothing limits its current "
+                 "(put a resistance in series)", block_desc[e->user_kind].desc, e->name);
+    r->R[k] = Rth;
+}
+
 static void build_root(Wdf *wd, Edge *E, int ne) {
     Circuit *c = wd->c;
     Root *r = &wd->root;
@@ -157,13 +190,15 @@ static void build_root(Wdf *wd, Edge *E, int ne) {
         }
     core[r->ref_node] = -1;
     r->edge = arena_alloc(sizeof(RootEdge) * (size_t)ne);
-    /* ports first, then V sources, then I sources */
-    for (int pass = 0; pass < 3; pass++)
+    /* ports first, then nonlinear edges, V sources, I sources */
+    static const int order[] = {0, 3, 1, 2};
+    for (int pass = 0; pass < 4; pass++)
         for (int i = 0; i < ne; i++) {
             if (!E[i].alive)
                 continue;
-            int kind = E[i].node ? 0 : c->elems[E[i].src].kind == E_V ? 1 : 2;
-            if (kind != pass)
+            ElemKind ek = E[i].node ? E_R : c->elems[E[i].src].kind;
+            int kind = E[i].node ? 0 : ek == E_V ? 1 : ek == E_I ? 2 : 3;
+            if (kind != order[pass])
                 continue;
             RootEdge *re = &r->edge[r->nedge++];
             re->kind = kind;
@@ -177,16 +212,21 @@ static void build_root(Wdf *wd, Edge *E, int ne) {
             }
             if (kind == 1)
                 r->nv++;
+            if (kind == 3)
+                r->nnl++;
         }
+    check_nonlinear(wd);
     r->M = arena_alloc(sizeof(double) * (size_t)(r->nedge * r->nedge));
-    double *R = arena_alloc(sizeof(double) * (size_t)(r->nport + 1));
+    double *R = r->R = arena_alloc(sizeof(double) * (size_t)(r->nport + r->nnl + 1));
     for (int i = 0; i < r->nport; i++)
         R[i] = r->edge[i].node->R;
+    for (int i = r->nport; i < r->nport + r->nnl; i++)
+        adapt_nonlinear(wd, i);
     if (scatter_root(r, R, r->M) < 0) {
         Vec names = {0};
-        for (int i = r->nport; i < r->nedge; i++)
+        for (int i = r->nport + r->nnl; i < r->nedge; i++)
             vec_push(&names, (void *)c->elems[r->edge[i].elem].name);
-        const Elem *e0 = &c->elems[r->edge[r->nport].elem];
+        const Elem *e0 = &c->elems[r->edge[r->nport + r->nnl].elem];
         char *list = "";
         for (int i = 0; i < names.len; i++)
             list = format("%s%s'%s'", list, i ? ", " : "", (char *)names.data[i]);
@@ -245,7 +285,7 @@ Wdf *wdf_build(Circuit *c, double fs) {
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         E[i] = (Edge){e->n[0], e->n[1], NULL, -1, true};
-        if (is_ideal(e)) {
+        if (at_root(e)) {
             E[i].src = i;
             continue;
         }
