@@ -27,7 +27,7 @@ typedef struct Scope {
     int *formal_node;     /* actual node of each formal node */
     Expr **bparam;        /* actual value of each block param (kv of head) */
     struct Scope *parent;
-    int depth;
+    SrcPos usepos;        /* the instance name on its `use` line */
 } Scope;
 
 typedef struct Elab {
@@ -45,6 +45,7 @@ typedef struct Elab {
     Vec incstack;  /* const char* resolved paths being included */
     int *node_deg;
     bool have_voice, have_domain, have_rate;
+    SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
 } Elab;
 
 /* ---- names ---- */
@@ -237,7 +238,7 @@ static void include(Elab *E, Line *l, BlockDef *into) {
     char real[PATH_MAX];
     const char *key = realpath(path, real) ? arena_strdup(real) : path;
     if (find_str(&E->incstack, key) >= 0)
-        error_at(l->args[0].pos, "include cycle: '%s' includes itself", l->args[0].name);
+        error_at(l->args[0].pos, "include cycle: '%s' is already being read", l->args[0].name);
     if (E->incstack.len > 32)
         error_at(l->args[0].pos, "includes nested too deeply");
     size_t len;
@@ -281,7 +282,7 @@ static void collect(Elab *E, Program *prog, BlockDef *into) {
                 error_at(l->pos, "'%s' without a matching '.block'", l->head);
             cur = into;
         } else if (cur) {
-            if (l->head[0] == '.' && strcmp(l->head, ".ic") && strcmp(l->head, ".end"))
+            if (l->head[0] == '.' && strcmp(l->head, ".end"))
                 error_at(l->pos, "directive '%s' is not allowed inside a block", l->head);
             vec_push(&cur->lines, l);
         } else {
@@ -293,6 +294,21 @@ static void collect(Elab *E, Program *prog, BlockDef *into) {
 }
 
 /* ---- directives ---- */
+
+static bool has_names(const Expr *e) {
+    return e && (e->kind == EX_NAME || e->kind == EX_PARAM || has_names(e->a) || has_names(e->b));
+}
+
+/* A value that must be known at compile time: a number or a braced
+ * expression of numbers, never of params. */
+static double const_number(const Value *v, const char *what) {
+    if (v->kind != VAL_EXPR || has_names(v->expr))
+        error_at(v->pos, "%s must be a number (params are not known at compile time)", what);
+    double x = expr_eval(v->expr, NULL);
+    if (!isfinite(x))
+        error_at(v->pos, "%s is not a finite number", what);
+    return x;
+}
 
 static void dir_param(Elab *E, Line *l) {
     if (!is_c_ident(l->name))
@@ -308,10 +324,8 @@ static void dir_param(Elab *E, Line *l) {
     p->min = -INFINITY;
     p->max = INFINITY;
     const Value *v = &l->args[0];
-    if (v->kind != VAL_EXPR || !expr_is_const(v->expr) || v->expr->kind == EX_NAME)
-        error_at(v->pos, "the default of param '%s' must be a number", l->name);
-    Expr *d = resolve(E, &(Scope){.prefix = ""}, v->expr);
-    p->def = expr_eval(d, NULL);
+    p->def = const_number(v, format("the default of param '%s'", l->name));
+    SrcPos minpos = l->pos;
     for (int i = 0; i < l->nkv; i++) {
         KeyVal *k = &l->kv[i];
         if (!strcmp(k->key, "unit")) {
@@ -330,16 +344,16 @@ static void dir_param(Elab *E, Line *l) {
         }
         if (strcmp(k->key, "min") && strcmp(k->key, "max"))
             error_at(k->pos, "unknown key '%s' for .param (expected min=, max= or unit=)", k->key);
-        if (k->val.kind != VAL_EXPR || !expr_is_const(k->val.expr))
-            error_at(k->val.pos, "%s= of param '%s' must be a number", k->key, l->name);
-        double x = expr_eval(resolve(E, &(Scope){.prefix = ""}, k->val.expr), NULL);
-        if (!strcmp(k->key, "min"))
+        double x = const_number(&k->val, format("%s= of param '%s'", k->key, l->name));
+        if (!strcmp(k->key, "min")) {
             p->min = x;
-        else
+            minpos = k->pos;
+        } else {
             p->max = x;
+        }
     }
     if (!(p->min <= p->max))
-        error_at(l->pos, "param '%s' has min greater than max", l->name);
+        error_at(minpos, "param '%s' has min greater than max", l->name);
     if (p->def < p->min || p->def > p->max)
         error_at(v->pos, "default %g of param '%s' lies outside [%g, %g]", p->def, l->name, p->min,
                  p->max);
@@ -371,9 +385,7 @@ static void dir_simple(Elab *E, Line *l) {
         E->have_domain = true;
     } else if (!strcmp(d, ".rate")) {
         const Value *v = &l->args[0];
-        if (v->kind != VAL_EXPR || !expr_is_const(v->expr))
-            error_at(v->pos, "the sample rate must be a number");
-        c->rate = expr_eval(resolve(E, &(Scope){.prefix = ""}, v->expr), NULL);
+        c->rate = const_number(v, "the sample rate");
         if (!(c->rate >= 1 && c->rate <= 1e7))
             error_at(v->pos, "sample rate %g Hz is out of range (1 Hz to 10 MHz)", c->rate);
         if (E->have_rate)
@@ -422,9 +434,10 @@ static Elem *add_elem(Elab *E, Scope *S, Line *l, ElemKind k, const char *suffix
     const char *name = format("%s%s%s", S->prefix, l->name, suffix);
     Elem *prev = find_elem(E, name);
     if (prev) {
-        SrcPos p = l->namepos;
         if (S->def)
-            error_at(p, "duplicate element name '%s' (in an instance of block '%s')", name, S->def->name);
+            error_at(S->usepos, "duplicate element name '%s' (in this instance of block '%s')", name,
+                     S->def->name);
+        SrcPos p = l->namepos;
         error_at(p, "duplicate element name '%s'", name);
     }
     Elem *e = arena_alloc(sizeof(Elem));
@@ -469,6 +482,8 @@ static void check_keys(Line *l) {
 }
 
 static Line *find_model(Elab *E, const Value *v) {
+    if (v->kind != VAL_NAME)
+        error_at(v->pos, "expected a model name");
     for (int i = 0; i < E->models.len; i++)
         if (v->kind == VAL_NAME && !strcmp(((Line *)E->models.data[i])->name, v->name))
             return E->models.data[i];
@@ -581,10 +596,10 @@ static NlSpec *nonlinear(Elab *E, Scope *S, Line *l) {
         nl->Vt = key_or(E, S, src, "Vt", 25.852e-3);
         KeyVal *pk = key(src, "pair");
         if (pk) {
-            Expr *pe = value_expr(E, S, &pk->val, "pair");
-            if (!expr_is_const(pe) || (expr_eval(pe, NULL) != 0 && expr_eval(pe, NULL) != 1))
+            double pv = const_number(&pk->val, "pair=");
+            if (pv != 0 && pv != 1)
                 error_at(pk->val.pos, "pair= takes 0 or 1");
-            nl->pair = expr_eval(pe, NULL) == 1;
+            nl->pair = pv == 1;
         }
         break;
     }
@@ -725,6 +740,7 @@ static void instantiate(Elab *E, Scope *S, Line *l) {
     in->prefix = format("%s%s.", S->prefix, l->name);
     in->def = def;
     in->parent = S;
+    in->usepos = l->namepos;
     in->formal_node = arena_alloc(sizeof(int) * (size_t)(h->nargs + 1));
     for (int i = 0; i < h->nargs; i++)
         in->formal_node[i] = node_of(E, S, l->args[i + 1].name, l->args[i + 1].pos, true);
@@ -899,7 +915,7 @@ static void check_values(Elab *E) {
 static void check_graph(Elab *E) {
     Circuit *c = E->c;
     if (c->nelems == 0)
-        error_at((SrcPos){0}, "%s: the netlist has no elements", c->path);
+        error_at(E->endpos, "the netlist has no elements");
     int *deg = arena_alloc(sizeof(int) * (size_t)c->nnodes);
     int *first = arena_alloc(sizeof(int) * (size_t)c->nnodes);
     for (int i = c->nelems - 1; i >= 0; i--)
@@ -965,6 +981,10 @@ static void finish(Elab *E) {
 
 static Circuit *elaborate(SrcFile *f) {
     Elab E = {0};
+    int lines = 1;
+    for (const char *q = f->text; *q; q++)
+        lines += *q == '\n' && q[1];
+    E.endpos = (SrcPos){f, lines, 1};
     Circuit *c = E.c = arena_alloc(sizeof(Circuit));
     c->path = f->path;
     c->rate = 48000;
@@ -972,6 +992,8 @@ static Circuit *elaborate(SrcFile *f) {
     for (const char *p = f->text; *p; p++)
         c->hash = (c->hash ^ (unsigned char)*p) * 16777619u;
     vec_push(&E.nodes, "0");
+    char real[PATH_MAX];
+    vec_push(&E.incstack, realpath(f->path, real) ? arena_strdup(real) : (char *)f->path);
     collect(&E, parse_file(f), NULL);
     for (int i = 0; i < E.top.len; i++) {
         Line *l = E.top.data[i];
@@ -1028,7 +1050,11 @@ Circuit *wdc_load(const char *path) {
         return NULL;
     }
     if (strlen(text) != len) {
-        fprintf(diag.out ? diag.out : stderr, "%s:1:1: error: the file contains a NUL byte\n", path);
+        int line = 1, col = 1;
+        for (const char *q = text; *q; q++, col++)
+            if (*q == '\n')
+                line++, col = 0;
+        fprintf(diag.out ? diag.out : stderr, "%s:%d:%d: error: the file contains a NUL byte\n", path, line, col);
         diag.errors++;
         return NULL;
     }

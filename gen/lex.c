@@ -52,7 +52,7 @@ static const struct { const char *s; double v; } suffixes[] = {
 };
 
 /* Unit words that may follow a number and its suffix (ignored). */
-static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "Ohm", "N", "g"};
+static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "Ohm", "N"};
 
 bool lex_number(const char *s, int len, double *out, const char **why) {
     char buf[64];
@@ -83,7 +83,9 @@ bool lex_number(const char *s, int len, double *out, const char **why) {
     }
     const char *rest = end;
     double scale = 1;
-    for (size_t i = 0; i < sizeof suffixes / sizeof suffixes[0]; i++) {
+    if (!strcmp(rest, "kg")) /* the SI unit of mass, not kilo-grams of anything */
+        rest += 2;
+    for (size_t i = 0; *rest && i < sizeof suffixes / sizeof suffixes[0]; i++) {
         size_t n = strlen(suffixes[i].s);
         if (!strncasecmp(rest, suffixes[i].s, n)) {
             scale = suffixes[i].v;

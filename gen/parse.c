@@ -47,6 +47,8 @@ typedef struct ELex {
     const char *p, *start;
     SrcPos base; /* position of the first character inside the braces */
     char kind;   /* 'n' number, 'w' word, 'e' end, or the punctuation char */
+    int depth;   /* nesting of the production being parsed */
+    int nodes;   /* nodes built so far */
     const char *text;
     int len;
     double num;
@@ -138,11 +140,23 @@ const char *fn_name(FnKind fn) { return fns[fn].name; }
 
 static Expr *expr(ELex *E);
 static Expr *unary(ELex *E);
+static Expr *unary_(ELex *E);
 
 static void expect(ELex *E, char k, const char *what) {
     if (E->kind != k)
         error_at(E->pos, "expected %s in expression", what);
     enext(E);
+}
+
+/* Expressions are small; these limits keep the recursive passes over
+ * them (here and in later phases) well inside the stack. */
+enum { EXPR_MAX_DEPTH = 200, EXPR_MAX_NODES = 4000 };
+
+static void enter(ELex *E) {
+    if (++E->depth > EXPR_MAX_DEPTH)
+        error_at(E->pos, "expression nested too deeply");
+    if (++E->nodes > EXPR_MAX_NODES)
+        error_at(E->pos, "expression too long");
 }
 
 /* primary = NUMBER | NAME | NAME '(' expr [',' expr] ')' | '(' expr ')' */
@@ -198,6 +212,13 @@ static Expr *power(ELex *E) {
 
 /* unary = ('-' | '+') unary | power */
 static Expr *unary(ELex *E) {
+    enter(E);
+    Expr *e = unary_(E);
+    E->depth--;
+    return e;
+}
+
+static Expr *unary_(ELex *E) {
     if (E->kind == '-' || E->kind == '+') {
         SrcPos pos = E->pos;
         bool neg = E->kind == '-';
@@ -371,7 +392,8 @@ static void element(Parser *P, Line *l) {
     if (kind >= 0) {
         P->tok++;
         if (at_eol(P))
-            error_at(P->tok->pos, "missing %s name after '%s'", block_desc[kind].desc, l->head);
+            error_at(P->tok->pos, kind == BK_USE ? "missing block name after 'use'" : "missing %s name after '%s'",
+                     block_desc[kind].desc, l->head);
         l->namepos = P->tok->pos;
         l->name = word(P, "a name");
     } else {
@@ -476,8 +498,11 @@ static bool directive(Parser *P, Line *l) {
     P->tok++;
     if (!strcmp(d, ".voice") || !strcmp(d, ".domain") || !strcmp(d, ".endblock") ||
         !strcmp(d, ".ends") || !strcmp(d, ".end")) {
-        if (strcmp(d, ".endblock") && strcmp(d, ".ends") && strcmp(d, ".end"))
+        if (strcmp(d, ".endblock") && strcmp(d, ".ends") && strcmp(d, ".end")) {
+            if (at_eol(P))
+                error_at(P->tok->pos, "missing %s after %s", d[1] == 'v' ? "voice name" : "domain", d);
             add_arg(&args, node_value(P));
+        }
     } else if (!strcmp(d, ".rate")) {
         if (at_eol(P))
             error_at(P->tok->pos, "missing sample rate after .rate");
@@ -498,6 +523,8 @@ static bool directive(Parser *P, Line *l) {
     } else if (!strcmp(d, ".model")) {
         l->namepos = P->tok->pos;
         l->name = word(P, "a model name");
+        if (at_eol(P))
+            error_at(P->tok->pos, "missing the kind of model '%s' (such as D)", l->name);
         add_arg(&args, node_value(P));
     } else if (!strcmp(d, ".include")) {
         if (P->tok->kind != TK_STRING && P->tok->kind != TK_IDENT)

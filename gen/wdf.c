@@ -222,6 +222,9 @@ static void build_root(Wdf *wd, Edge *E, int ne) {
         R[i] = r->edge[i].node->R;
     for (int i = r->nport; i < r->nport + r->nnl; i++)
         adapt_nonlinear(wd, i);
+    if (scatter_root(r, R, r->M) < 0 && r->nedge == r->nport + r->nnl)
+        error_at(c->elems[0].pos, "the network's equations are singular: its element values span too wide a "
+                 "range to solve in double precision");
     if (scatter_root(r, R, r->M) < 0) {
         Vec names = {0};
         for (int i = r->nport + r->nnl; i < r->nedge; i++)
@@ -292,6 +295,9 @@ Wdf *wdf_build(Circuit *c, double fs) {
         WNode *n = new_node(W_LEAF, e->n[0], e->n[1]);
         n->elem = i;
         n->R = leaf_R(c, e, p, fs);
+        if (!(n->R > 1e-150 && n->R < 1e150))
+            error_at(e->pos, "%s '%s' has port resistance %g at %g Hz, out of the range a voice can compute "
+                     "with (1e-150 to 1e150)", block_desc[e->user_kind].desc, e->name, n->R, fs);
         n->pmask = expr_params(e->val);
         E[i].node = w->leaf_of[i] = n;
     }
