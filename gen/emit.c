@@ -51,7 +51,11 @@ typedef struct Ctx {
     int nk, nreact;
     int *src;        /* element -> source index or -1 */
     int nsrc;
-    int *rootrow;    /* element of an ideal source -> its root edge */
+    int *nl_root;    /* nonlinear index -> its root */
+    int *nl_edge;    /* nonlinear index -> its edge in that root */
+    int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
+    int *moff;       /* root -> offset of its matrix in c_M */
+    int nM;          /* entries of all root matrices */
     const char **b;  /* tree node -> C expression of its reflected wave */
     const char **bpost; /* the same after the backward pass */
     const char **a;  /* tree node -> C expression of its incident wave */
@@ -70,6 +74,10 @@ static const char *lit(Ctx *x, double v) {
     if (x->single)
         s = format("%sf", s);
     return v < 0 ? format("(%s)", s) : s;
+}
+
+static const Elem *nl_elem(Ctx *x, int k) {
+    return &x->c->elems[x->w->roots[x->nl_root[k]].edge[x->nl_edge[k]].elem];
 }
 
 /* C text of an elaborated expression over p[]. */
@@ -145,9 +153,8 @@ static void emit_update(Ctx *x, Buf *o) {
                  x->koff[n->id] + k, n->child[k]->id);
         emit(o, "    }\n");
     }
-    const Root *r = &x->w->root;
-    for (int k = 0; k < r->nnl; k++) {
-        const Elem *e = &c->elems[r->edge[r->nport + k].elem];
+    for (int k = 0; k < x->nnl; k++) {
+        const Elem *e = nl_elem(x, k);
         const NlSpec *nl = e->nl;
         Expr *v[4] = {NULL, NULL, NULL, NULL};
         if (nl->kind == NL_DIODE) {
@@ -161,7 +168,8 @@ static void emit_update(Ctx *x, Buf *o) {
                 emit(o, "    %s /* %s */\n        st->c_nl[%d] = (real)(%s);\n", guard(expr_params(v[j])), e->name,
                      4 * k + j, cexpr(x, v[j]));
     }
-    emit(o, "    %s\n        root_solve(st);\n", guard(x->w->root.pmask));
+    for (int b = 0; b < x->w->nroots; b++)
+        emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (x->src[i] >= 0 && e->input < 0)
@@ -216,10 +224,10 @@ static void emit_forward(Ctx *x, Buf *o) {
 }
 
 /* input j of the root: b of a port or the drive of a source */
-static const char *root_in(Ctx *x, int j) {
-    const RootEdge *e = &x->w->root.edge[j];
+static const char *root_in(Ctx *x, int b, int j) {
+    const RootEdge *e = &x->w->roots[b].edge[j];
     if (e->kind == 3)
-        return format("t_bn%d", j - x->w->root.nport);
+        return format("t_bn%d", x->nl_first[b] + j - x->w->roots[b].nport);
     return e->kind == 0 ? x->b[e->node->id] : drive_of(x, &x->c->elems[e->elem]);
 }
 
@@ -230,7 +238,7 @@ static Solver solver_of(Ctx *x, const NlSpec *nl) {
 
 /* The wave a nonlinear edge reflects, from the wave the root sends it. */
 static void emit_nl_solve(Ctx *x, Buf *o, int k) {
-    const Elem *e = &x->c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+    const Elem *e = nl_elem(x, k);
     const NlSpec *nl = e->nl;
     const char *tol = format("%.17g", x->opt->tol);
     int it = x->opt->maxit;
@@ -261,34 +269,35 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     emit(o, "        }\n");
 }
 
-static void emit_root(Ctx *x, Buf *o) {
-    const Root *r = &x->w->root;
-    emit(o, "        /* root */\n");
+static void emit_root(Ctx *x, Buf *o, int b) {
+    const Root *r = &x->w->roots[b];
+    emit(o, "        /* root %d */\n", b);
     for (int k = r->nport; k < r->nport + r->nnl; k++) {
         Buf t = {0};
         for (int j = 0; j < r->nedge; j++) {
-            const char *in = root_in(x, j);
+            const char *in = root_in(x, b, j);
             if (j != k && !is_zero(in))
-                emit(&t, "%sm_%d_%d * %s", t.len ? " + " : "", k, j, in);
+                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
         }
-        emit(o, "        const real t_an%d = %s;\n", k - r->nport, t.len ? str(&t) : lit(x, 0));
-        emit_nl_solve(x, o, k - r->nport);
+        int g = x->nl_first[b] + k - r->nport;
+        emit(o, "        const real t_an%d = %s;\n", g, t.len ? str(&t) : lit(x, 0));
+        emit_nl_solve(x, o, g);
     }
     for (int k = 0; k < r->nedge; k++) {
         if (r->edge[k].kind == 3)
             continue;
         Buf t = {0};
         for (int j = 0; j < r->nedge; j++) {
-            const char *in = root_in(x, j);
+            const char *in = root_in(x, b, j);
             if (!is_zero(in))
-                emit(&t, "%sm_%d_%d * %s", t.len ? " + " : "", k, j, in);
+                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
         }
         const char *v = t.len ? str(&t) : lit(x, 0);
         if (r->edge[k].kind == 0) {
             emit(o, "        const real t_a%d = %s;\n", r->edge[k].node->id, v);
             x->a[r->edge[k].node->id] = format("t_a%d", r->edge[k].node->id);
         } else {
-            emit(o, "        const real t_r%d = %s; /* %s of %s */\n", k, v,
+            emit(o, "        const real t_r%d_%d = %s; /* %s of %s */\n", b, k, v,
                  r->edge[k].kind == 1 ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
         }
     }
@@ -343,14 +352,15 @@ static const char *elem_v(Ctx *x, int ei) {
         return is_zero(b) ? format("%s * t_a%d", lit(x, 0.5), n->id)
                           : format("%s * (t_a%d + %s)", lit(x, 0.5), n->id, b);
     }
-    for (int k = 0; k < x->w->root.nedge; k++)
-        if (x->w->root.edge[k].elem == ei) {
-            if (e->kind == E_NL) {
-                int n = k - x->w->root.nport;
-                return format("%s * (t_an%d + t_bn%d)", lit(x, 0.5), n, n);
+    for (int b = 0; b < x->w->nroots; b++)
+        for (int k = 0; k < x->w->roots[b].nedge; k++)
+            if (x->w->roots[b].edge[k].elem == ei) {
+                if (e->kind == E_NL) {
+                    int n = x->nl_first[b] + k - x->w->roots[b].nport;
+                    return format("%s * (t_an%d + t_bn%d)", lit(x, 0.5), n, n);
+                }
+                return e->kind == E_V ? drive_of(x, e) : format("t_r%d_%d", b, k);
             }
-            return e->kind == E_V ? drive_of(x, e) : format("t_r%d", k);
-        }
     unreachable();
 }
 
@@ -362,14 +372,15 @@ static const char *elem_i(Ctx *x, int ei) {
         return is_zero(b) ? format("k_g%d * t_a%d", n->id, n->id)
                           : format("k_g%d * (t_a%d - %s)", n->id, n->id, b);
     }
-    for (int k = 0; k < x->w->root.nedge; k++)
-        if (x->w->root.edge[k].elem == ei) {
-            if (e->kind == E_NL) {
-                int n = k - x->w->root.nport;
-                return format("k_gn%d * (t_an%d - t_bn%d)", n, n, n);
+    for (int b = 0; b < x->w->nroots; b++)
+        for (int k = 0; k < x->w->roots[b].nedge; k++)
+            if (x->w->roots[b].edge[k].elem == ei) {
+                if (e->kind == E_NL) {
+                    int n = x->nl_first[b] + k - x->w->roots[b].nport;
+                    return format("k_gn%d * (t_an%d - t_bn%d)", n, n, n);
+                }
+                return e->kind == E_I ? drive_of(x, e) : format("t_r%d_%d", b, k);
             }
-            return e->kind == E_I ? drive_of(x, e) : format("t_r%d", k);
-        }
     unreachable();
 }
 
@@ -436,7 +447,6 @@ static void emit_work(Ctx *x, Buf *o) {
 
 static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
     const Circuit *c = x->c;
-    const Root *r = &x->w->root;
     emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
     emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
     emit(wb, "    st->s_work = s_work;\n");
@@ -457,9 +467,13 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
         emit(o, "    const double *const in%d = in[%d];\n", i, i);
     for (int i = 0; i < x->nk; i++)
         emit(o, "    const real c_k%d = st->c_k[%d];\n    (void)c_k%d;\n", i, i, i);
-    for (int k = 0; k < r->nedge; k++)
-        for (int j = 0; j < r->nedge; j++)
-            emit(o, "    const real m_%d_%d = st->c_M[%d];\n    (void)m_%d_%d;\n", k, j, k * r->nedge + j, k, j);
+    for (int b = 0; b < x->w->nroots; b++) {
+        const Root *r = &x->w->roots[b];
+        for (int k = 0; k < r->nedge; k++)
+            for (int j = 0; j < r->nedge; j++)
+                emit(o, "    const real m%d_%d_%d = st->c_M[%d];\n    (void)m%d_%d_%d;\n", b, k, j,
+                     x->moff[b] + k * r->nedge + j, b, k, j);
+    }
     for (int i = 0; i < x->w->nnodes; i++) {
         emit(o, "    const real k_R%d = st->c_R[%d], k_g%d = (real)(0.5 / st->c_R[%d]);\n", i, i, i, i);
         emit(o, "    (void)k_R%d;\n    (void)k_g%d;\n", i, i);
@@ -513,7 +527,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
             emit(o, "    st->s_we[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
     }
     for (int k = 0; k < x->nnl; k++) {
-        const Elem *e = &c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+        const Elem *e = nl_elem(x, k);
         if (e->nl->kind == NL_CONTACT)
             emit(o, "    st->s_nX[%d] = (real)(%s - %s);\n", k, ic_node_value(x, 'x', e->n[0]),
                  ic_node_value(x, 'x', e->n[1]));
@@ -536,7 +550,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
 
 static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
     for (int k = 0; k < x->nnl; k++) {
-        const Elem *e = &x->c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+        const Elem *e = nl_elem(x, k);
         if (e->nl->kind == NL_CONTACT)
             emit(o, "    { double X = st->s_nX[%d] - st->c_nl[%d], al = st->c_nl[%d]; "
                     "if (X > 0) E += st->c_nl[%d] * pow(X, al + 1) / (al + 1); } /* %s */\n",
@@ -584,7 +598,7 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                          x->react[i], sg > 0 ? "" : "-", i);
             }
             for (int k = 0; k < x->nnl && fn == 'x'; k++) {
-                const Elem *e = &c->elems[x->w->root.edge[x->w->root.nport + k].elem];
+                const Elem *e = nl_elem(x, k);
                 int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
                 if (sg && e->nl->kind == NL_CONTACT)
                     emit(cases, "            st->s_nX[%d] = (real)(%svalues[k]);\n", k, sg > 0 ? "" : "-");
@@ -603,10 +617,9 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
 
 static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *force) {
-    const Root *r = &x->w->root;
     bool diode = false, omega = false, pwl = false, contact = false;
-    for (int k = 0; k < r->nnl; k++) {
-        const Elem *e = &x->c->elems[r->edge[r->nport + k].elem];
+    for (int k = 0; k < x->nnl; k++) {
+        const Elem *e = nl_elem(x, k);
         if (e->nl->kind == NL_CONTACT) {
             contact = true;
             emit(force, "    if (k == %d) { double dX, dXd; return contact_f(st->s_nX[%d] - st->c_nl[%d], 0, "
@@ -679,16 +692,25 @@ static const char *descriptors(Ctx *x, char which) {
     return str(&b);
 }
 
-static const char *root_table(Ctx *x) {
-    const Root *r = &x->w->root;
+/* The edges of every root, one after the other, and per root: first
+ * edge, edge count, nodal unknowns, ideal V sources, matrix offset. */
+static const char *root_table(Ctx *x, Buf *desc) {
     Buf b = {0};
     emit(&b, "{");
-    for (int k = 0; k < r->nedge; k++) {
-        const RootEdge *e = &r->edge[k];
-        emit(&b, "%s{%d, %d, %d, %d}", k ? ", " : "", e->kind, e->p, e->q,
-             e->kind == 0 ? e->node->id : e->kind == 3 ? k - r->nport : -1);
+    emit(desc, "{");
+    int first = 0;
+    for (int rb = 0; rb < x->w->nroots; rb++) {
+        const Root *r = &x->w->roots[rb];
+        for (int k = 0; k < r->nedge; k++) {
+            const RootEdge *e = &r->edge[k];
+            emit(&b, "%s{%d, %d, %d, %d}", first + k ? ", " : "", e->kind, e->p, e->q,
+                 e->kind == 0 ? e->node->id : e->kind == 3 ? x->nl_first[rb] + k - r->nport : -1);
+        }
+        emit(desc, "%s{%d, %d, %d, %d, %d}", rb ? ", " : "", first, r->nedge, r->ncore + r->nv, r->nv, x->moff[rb]);
+        first += r->nedge;
     }
     emit(&b, "}");
+    emit(desc, "}");
     return str(&b);
 }
 
@@ -712,9 +734,9 @@ static const char *ic_table(Ctx *x, int *nv) {
         }
         *nv += kind == 1 || kind == 3;
         int nli = -1;
-        for (int k = 0; k < x->w->root.nedge; k++)
-            if (x->w->root.edge[k].kind == 3 && x->w->root.edge[k].elem == i)
-                nli = k - x->w->root.nport;
+        for (int k = 0; k < x->nnl; k++)
+            if (nl_elem(x, k) == e)
+                nli = k;
         emit(&b, "%s{%d, %d, %d, %d, %d, %d}", i ? ", " : "", kind, e->n[0], e->n[1], n ? n->id : -1,
              n ? x->react[n->id] : nli, x->src[i]);
     }
@@ -725,7 +747,7 @@ static const char *ic_table(Ctx *x, int *nv) {
 static const char *state_fields(Ctx *x, int nd) {
     const Circuit *c = x->c;
     const char *r = format("%s_real", c->name);
-    int nx = x_probes(c), ne = x->w->root.nedge;
+    int nx = x_probes(c);
 #define M1(n) ((n) > 0 ? (n) : 1)
     return format(
         "    double p[%d];          /* param values */\n"
@@ -752,7 +774,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    double w_A[%d];        /* solve workspace (control rate only) */\n"
         "    double w_x[%d];\n"
         "    int w_piv[%d];",
-        M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, ne * ne, r, M1(x->nsrc), r, M1(x->nreact), r,
+        M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), r, M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
         r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), nd * nd, nd, nd);
 #undef M1
@@ -843,14 +865,27 @@ static void index_tree(Ctx *x) {
         if (n->kind != W_LEAF)
             x->nk += n->nchild;
     }
-    const Root *r = &w->root;
-    x->nnl = r->nnl;
-    x->pwl_off = arena_alloc(sizeof(int) * (size_t)(r->nnl + 1));
-    x->pwl_n = arena_alloc(sizeof(int) * (size_t)(r->nnl + 1));
-    x->pwl_v = arena_alloc(sizeof(double *) * (size_t)(r->nnl + 1));
-    x->pwl_i = arena_alloc(sizeof(double *) * (size_t)(r->nnl + 1));
-    for (int k = 0; k < r->nnl; k++) {
-        const Elem *e = &c->elems[r->edge[r->nport + k].elem];
+    x->nl_first = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
+    x->moff = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
+    for (int b = 0; b < w->nroots; b++) {
+        x->nl_first[b] = x->nnl;
+        x->nnl += w->roots[b].nnl;
+        x->moff[b] = x->nM;
+        x->nM += w->roots[b].nedge * w->roots[b].nedge;
+    }
+    x->nl_root = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
+    x->nl_edge = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
+    for (int b = 0; b < w->nroots; b++)
+        for (int k = 0; k < w->roots[b].nnl; k++) {
+            x->nl_root[x->nl_first[b] + k] = b;
+            x->nl_edge[x->nl_first[b] + k] = w->roots[b].nport + k;
+        }
+    x->pwl_off = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
+    x->pwl_n = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
+    x->pwl_v = arena_alloc(sizeof(double *) * (size_t)(x->nnl + 1));
+    x->pwl_i = arena_alloc(sizeof(double *) * (size_t)(x->nnl + 1));
+    for (int k = 0; k < x->nnl; k++) {
+        const Elem *e = nl_elem(x, k);
         if (e->nl->kind == NL_CONTACT || solver_of(x, e->nl) != SOLVER_PWL)
             continue;
         pwl_points(x, e, k);
@@ -872,7 +907,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     for (int i = 0; i < c->ninputs; i++)
         emit(&sample, "        const real t_in%d = (real)in%d[n];\n", i, i);
     emit_forward(&x, &sample);
-    emit_root(&x, &sample);
+    for (int b = 0; b < w->nroots; b++)
+        emit_root(&x, &sample, b);
     emit_backward(&x, &sample);
     emit_outputs(&x, &sample);
     emit_work(&x, &sample);
@@ -884,13 +920,21 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     emit_nonlinear(&x, &kernels, &tables, &retune, &force);
     int nicv;
     const char *ictab = ic_table(&x, &nicv);
-    int ncore = w->root.ncore + w->root.nv, nicn = c->nnodes - 1 + nicv;
+    int ncore = 0, nicn = c->nnodes - 1 + nicv, nports = 0, nsrcs = 0;
+    for (int b = 0; b < w->nroots; b++) {
+        const Root *r = &w->roots[b];
+        ncore = r->ncore + r->nv > ncore ? r->ncore + r->nv : ncore;
+        nports += r->nport;
+        nsrcs += r->nedge - r->nport - r->nnl;
+    }
+    Buf rdesc = {0};
+    const char *rtab = root_table(&x, &rdesc);
     int nd = ncore > nicn ? ncore : nicn;
     const char *real = opt->single ? "float" : "double";
     const char *options = format("precision %s, rate %g Hz by default", real, c->rate);
-    const char *summary = format("%d elements, %d nodes; %d adaptors and leaves, a root adaptor with %d ports, "
-                                 "%d nonlinear elements and %d ideal sources.", c->nelems, c->nnodes, w->nnodes,
-                                 w->root.nport, w->root.nnl, w->root.nedge - w->root.nport - w->root.nnl);
+    const char *summary = format("%d elements, %d nodes; %d adaptors and leaves under %d root adaptors with %d "
+                                 "ports, %d nonlinear elements and %d ideal sources in all.", c->nelems, c->nnodes,
+                                 w->nnodes, w->nroots, nports, x.nnl, nsrcs);
     char *guard = format("WDV_%s_H", c->name);
     for (char *g = guard; *g; g++)
         *g = (char)(*g >= 'a' && *g <= 'z' ? *g - 32 : *g);
@@ -898,11 +942,11 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         {"name", c->name}, {"version", WDC_VERSION}, {"source", c->path}, {"hash", format("%08x", c->hash)},
         {"options", options}, {"summary", summary}, {"guard", guard}, {"real", real},
         {"state_fields", state_fields(&x, nd)}, {"n_params", format("%d", c->nparams)},
-        {"n_root", format("%d", w->root.nedge)}, {"n_core", format("%d", ncore)},
-        {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)}, {"n_v", format("%d", w->root.nv)},
+        {"n_roots", format("%d", w->nroots)}, {"n_work", format("%d", nd)}, {"root_desc", str(&rdesc)},
+        {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)},
         {"inputs", descriptors(&x, 'i')}, {"outputs", descriptors(&x, 'o')}, {"params", descriptors(&x, 'p')},
         {"ic_targets", format("{%s}", str(&targets))}, {"n_ic_targets", format("%d", 2 * (c->nnodes - 1))},
-        {"root_edges", root_table(&x)}, {"ic_elems", ictab}, {"update", str(&update)},
+        {"root_edges", rtab}, {"ic_elems", ictab}, {"update", str(&update)},
         {"settle_probes", str(&probes)}, {"n_react_arr", format("%d", x.nreact > 0 ? x.nreact : 1)},
         {"reset", str(&reset)}, {"energy", str(&energy)}, {"kirchhoff", str(&kirch)},
         {"ic_cases", str(&cases)}, {"hoist", str(&hoist)}, {"sample", str(&sample)},

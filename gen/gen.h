@@ -372,6 +372,7 @@ struct WNode {
     WNode **child;
     int *pol;         /* +1/-1: child's orientation against this port */
     WNode *parent;
+    int root;         /* index of the root whose tree holds it */
     double R;         /* port resistance at the default params and rate */
     uint64_t pmask;   /* params its port resistance depends on */
 };
@@ -406,9 +407,12 @@ typedef struct Root {
 typedef struct Wdf {
     Circuit *c;
     double fs;
-    WNode **nodes;     /* post-order: children before parents */
+    WNode **nodes;     /* post-order: children before parents, root by root */
     int nnodes;
-    Root root;
+    Root *roots;       /* one per block of the core: parts that share at most
+                          one node, or meet only through a delay, are
+                          independent */
+    int nroots;
     WNode **leaf_of;   /* element index -> its leaf, NULL for root sources */
     /* Path from ground to each graph node: element indices with sign,
      * so v(node) = sum sign * v(elem). */

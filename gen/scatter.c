@@ -140,6 +140,8 @@ static double lossless_err(const double *S, const double *R, int n) {
     return err;
 }
 
+static double root_check(const Root *r, double tol);
+
 double scatter_check(const Wdf *w, double tol) {
     double worst = 0;
     for (int i = 0; i < w->nnodes; i++) {
@@ -162,7 +164,12 @@ double scatter_check(const Wdf *w, double tol) {
                 n->kind == W_SERIES ? "series" : "parallel", n->id, S[0]);
         worst = fmax(worst, err);
     }
-    const Root *r = &w->root;
+    for (int b = 0; b < w->nroots; b++)
+        worst = fmax(worst, root_check(&w->roots[b], tol));
+    return worst;
+}
+
+static double root_check(const Root *r, double tol) {
     int np = r->nport + r->nnl, ne = r->nedge;
     double *S = arena_alloc(sizeof(double) * (size_t)(np * np + 1));
     for (int k = 0; k < np; k++)
@@ -177,5 +184,5 @@ double scatter_check(const Wdf *w, double tol) {
     for (int k = r->nport; k < np; k++)
         if (fabs(S[k * np + k]) > tol)
             die("nonlinear edge %d of the root is not adapted (S = %g)", k, S[k * np + k]);
-    return fmax(worst, err);
+    return err;
 }

@@ -137,8 +137,7 @@ static void number(Wdf *w, WNode *n, Vec *order) {
 }
 
 /* One nonlinear element per root: several need a delay between them. */
-static void check_nonlinear(Wdf *wd) {
-    const Root *r = &wd->root;
+static void check_nonlinear(Wdf *wd, const Root *r) {
     if (r->nnl <= 1)
         return;
     const Elem *first = &wd->c->elems[r->edge[r->nport].elem];
@@ -153,8 +152,7 @@ static void check_nonlinear(Wdf *wd) {
 
 /* Gives nonlinear edge k the resistance the rest of the core presents to
  * it, so that the wave the root sends it does not depend on its own. */
-static void adapt_nonlinear(Wdf *wd, int k) {
-    Root *r = &wd->root;
+static void adapt_nonlinear(Wdf *wd, Root *r, int k) {
     const Elem *e = &wd->c->elems[r->edge[k].elem];
     r->R[k] = 1; /* unused by the solve, which leaves edge k out */
     double Rth;
@@ -167,9 +165,8 @@ static void adapt_nonlinear(Wdf *wd, int k) {
     r->R[k] = Rth;
 }
 
-static void build_root(Wdf *wd, Edge *E, int ne) {
+static void build_root(Wdf *wd, Root *r, Edge *E, int ne) {
     Circuit *c = wd->c;
-    Root *r = &wd->root;
     int *core = arena_alloc(sizeof(int) * (size_t)c->nnodes);
     for (int i = 0; i < c->nnodes; i++)
         core[i] = -2;
@@ -215,13 +212,13 @@ static void build_root(Wdf *wd, Edge *E, int ne) {
             if (kind == 3)
                 r->nnl++;
         }
-    check_nonlinear(wd);
+    check_nonlinear(wd, r);
     r->M = arena_alloc(sizeof(double) * (size_t)(r->nedge * r->nedge));
     double *R = r->R = arena_alloc(sizeof(double) * (size_t)(r->nport + r->nnl + 1));
     for (int i = 0; i < r->nport; i++)
         R[i] = r->edge[i].node->R;
     for (int i = r->nport; i < r->nport + r->nnl; i++)
-        adapt_nonlinear(wd, i);
+        adapt_nonlinear(wd, r, i);
     if (scatter_root(r, R, r->M) < 0 && r->nedge == r->nport + r->nnl)
         error_at(c->elems[0].pos, "the network's equations are singular: its element values span too wide a "
                  "range to solve in double precision");
@@ -236,6 +233,58 @@ static void build_root(Wdf *wd, Edge *E, int ne) {
         error_at(e0->pos, "the ideal sources %s cannot all hold: voltage sources form a loop or "
                  "current sources a cut-set (give one a series or parallel resistance, R=)", list);
     }
+}
+
+/* Biconnected blocks of the reduced graph (alive edges): two edges share
+ * a block if a simple cycle holds both.  Blocks that meet at one node
+ * exchange no current, so each is solved on its own.  Depth-first search
+ * with low points and a stack of edges; returns the number of blocks and
+ * sets block[i] for every alive edge. */
+typedef struct Dfs {
+    Edge *E;
+    int ne, nblocks, time;
+    int *disc, *low, *stack, sp, *block;
+} Dfs;
+
+static void dfs(Dfs *d, int v, int via) {
+    d->disc[v] = d->low[v] = ++d->time;
+    for (int i = 0; i < d->ne; i++) {
+        Edge *e = &d->E[i];
+        if (!e->alive || i == via || (e->u != v && e->w != v))
+            continue;
+        int u = e->u == v ? e->w : e->u;
+        if (!d->disc[u]) {
+            d->stack[d->sp++] = i;
+            dfs(d, u, i);
+            if (d->low[u] < d->low[v])
+                d->low[v] = d->low[u];
+            if (d->low[u] >= d->disc[v]) { /* v separates: pop one block */
+                int k;
+                do {
+                    k = d->stack[--d->sp];
+                    d->block[k] = d->nblocks;
+                } while (k != i);
+                d->nblocks++;
+            }
+        } else if (d->disc[u] < d->disc[v]) {
+            d->stack[d->sp++] = i;
+            if (d->disc[u] < d->low[v])
+                d->low[v] = d->disc[u];
+        }
+    }
+}
+
+static int blocks(Edge *E, int ne, int nnodes, int *block) {
+    Dfs d = {.E = E, .ne = ne, .block = block};
+    d.disc = arena_alloc(sizeof(int) * (size_t)nnodes);
+    d.low = arena_alloc(sizeof(int) * (size_t)nnodes);
+    d.stack = arena_alloc(sizeof(int) * (size_t)(ne + 1));
+    for (int i = 0; i < ne; i++)
+        block[i] = -1;
+    for (int v = 0; v < nnodes; v++)
+        if (!d.disc[v])
+            dfs(&d, v, -1);
+    return d.nblocks;
 }
 
 static void build_paths(Wdf *w) {
@@ -303,10 +352,25 @@ Wdf *wdf_build(Circuit *c, double fs) {
     }
     while (reduce_parallel(E, c->nelems) || reduce_series(E, c->nelems, c->nnodes))
         ;
-    build_root(w, E, c->nelems);
+    int *block = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    w->nroots = blocks(E, c->nelems, c->nnodes, block);
+    w->roots = arena_alloc(sizeof(Root) * (size_t)w->nroots);
+    Edge *sub = arena_alloc(sizeof(Edge) * (size_t)c->nelems);
+    for (int b = 0; b < w->nroots; b++) {
+        for (int i = 0; i < c->nelems; i++) {
+            sub[i] = E[i];
+            sub[i].alive = E[i].alive && block[i] == b;
+        }
+        build_root(w, &w->roots[b], sub, c->nelems);
+    }
     Vec order = {0};
-    for (int i = 0; i < w->root.nport; i++)
-        number(w, w->root.edge[i].node, &order);
+    for (int b = 0; b < w->nroots; b++)
+        for (int i = 0; i < w->roots[b].nport; i++) {
+            int first = order.len;
+            number(w, w->roots[b].edge[i].node, &order);
+            for (int k = first; k < order.len; k++)
+                ((WNode *)order.data[k])->root = b;
+        }
     w->nodes = (WNode **)order.data;
     w->nnodes = order.len;
     build_paths(w);
@@ -323,8 +387,9 @@ static const char *node_label(const Wdf *w, const WNode *n) {
 void wdf_dot(const Wdf *w, FILE *out) {
     const Circuit *c = w->c;
     fprintf(out, "digraph %s {\n  node [fontname=\"Helvetica\"];\n", c->name);
-    fprintf(out, "  root [shape=doubleoctagon,label=\"root (%s, %d ports)\"];\n",
-                 w->root.nedge > 1 ? "rigid" : "open end", w->root.nport);
+    for (int b = 0; b < w->nroots; b++)
+        fprintf(out, "  root%d [shape=doubleoctagon,label=\"root %d (%s, %d ports)\"];\n", b, b,
+                w->roots[b].nedge > 1 ? "rigid" : "open end", w->roots[b].nport);
     for (int i = 0; i < w->nnodes; i++) {
         const WNode *n = w->nodes[i];
         fprintf(out, "  n%d [shape=%s,label=\"%s\"];\n", n->id, n->kind == W_LEAF ? "box" : "ellipse",
@@ -333,15 +398,17 @@ void wdf_dot(const Wdf *w, FILE *out) {
             fprintf(out, "  n%d -> n%d [label=\"%s\"];\n", n->id, n->child[k]->id,
                     n->pol[k] > 0 ? "+" : "-");
     }
-    for (int i = 0; i < w->root.nedge; i++) {
-        const RootEdge *e = &w->root.edge[i];
-        if (e->kind == 0) {
-            fprintf(out, "  root -> n%d;\n", e->node->id);
-        } else {
-            fprintf(out, "  s%d [shape=circle,label=\"%s\\nideal %s\"];\n  root -> s%d;\n", i,
-                    c->elems[e->elem].name, e->kind == 1 ? "V" : "I", i);
+    for (int b = 0; b < w->nroots; b++)
+        for (int i = 0; i < w->roots[b].nedge; i++) {
+            const RootEdge *e = &w->roots[b].edge[i];
+            if (e->kind == 0) {
+                fprintf(out, "  root%d -> n%d;\n", b, e->node->id);
+            } else {
+                fprintf(out, "  s%d_%d [shape=circle,label=\"%s\\n%s\"];\n  root%d -> s%d_%d;\n", b, i,
+                        c->elems[e->elem].name, e->kind == 1 ? "ideal V" : e->kind == 2 ? "ideal I" : "nonlinear",
+                        b, b, i);
+            }
         }
-    }
     fprintf(out, "}\n");
 }
 
@@ -354,13 +421,16 @@ static void dump_node(const Wdf *w, const WNode *n, int depth, int pol, FILE *ou
 }
 
 void wdf_dump(const Wdf *w, FILE *out) {
-    const Root *r = &w->root;
-    fprintf(out, "root: %d ports, %d ideal sources, %d core nodes\n", r->nport, r->nedge - r->nport,
-            r->ncore);
-    for (int i = 0; i < r->nedge; i++) {
-        if (r->edge[i].kind == 0)
-            dump_node(w, r->edge[i].node, 1, 1, out);
-        else
-            fprintf(out, "  source %s\n", w->c->elems[r->edge[i].elem].name);
+    for (int b = 0; b < w->nroots; b++) {
+        const Root *r = &w->roots[b];
+        fprintf(out, "root %d: %d ports, %d nonlinear, %d ideal sources, %d core nodes\n", b, r->nport, r->nnl,
+                r->nedge - r->nport - r->nnl, r->ncore);
+        for (int i = 0; i < r->nedge; i++) {
+            if (r->edge[i].kind == 0)
+                dump_node(w, r->edge[i].node, 1, 1, out);
+            else
+                fprintf(out, "  %s %s\n", r->edge[i].kind == 3 ? "nonlinear" : "source",
+                        w->c->elems[r->edge[i].elem].name);
+        }
     }
 }

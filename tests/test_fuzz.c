@@ -492,9 +492,10 @@ static bool wdf_finite(const Wdf *w) {
     for (int i = 0; i < w->nnodes; i++)
         if (!(w->nodes[i]->R > 0) || !isfinite(w->nodes[i]->R))
             return false;
-    for (int i = 0; i < w->root.nedge * w->root.nedge; i++)
-        if (!isfinite(w->root.M[i]))
-            return false;
+    for (int b = 0; b < w->nroots; b++)
+        for (int i = 0; i < w->roots[b].nedge * w->roots[b].nedge; i++)
+            if (!isfinite(w->roots[b].M[i]))
+                return false;
     return true;
 }
 

@@ -228,9 +228,13 @@ static void test_netlist(void **state) {
     /* series and parallel adaptors at the default params */
     check_adaptors(path, w, "defaults", &x);
 
-    /* the root */
-    const Root *r = &w->root;
-    int np = r->nport + r->nnl, ne = r->nedge;
+    /* the roots */
+    int npmax = 0, nemax = 0, np = 0, ne = 0;
+    for (int rb = 0; rb < w->nroots; rb++) {
+    const Root *r = &w->roots[rb];
+    np = r->nport + r->nnl, ne = r->nedge;
+    npmax = np > npmax ? np : npmax;
+    nemax = ne > nemax ? ne : nemax;
     double root_stored = 0;
     if (np > 0) {
         double *M = calloc((size_t)(ne * ne), sizeof *M);
@@ -242,7 +246,7 @@ static void test_netlist(void **state) {
         assert_non_null(R);
         for (int k = 0; k < np; k++)
             R0[k] = k < r->nport ? r->edge[k].node->R : r->R[k];
-        x.root_default = root_error(path, r, R0, "the default", M, S, &x);
+        x.root_default = fmax(x.root_default, root_error(path, r, R0, "the default", M, S, &x));
         for (int k = 0; k < ne * ne; k++)
             root_stored = fmax(root_stored, fabs(M[k] - r->M[k]));
         if (!(root_stored <= 1e-12)) {
@@ -264,14 +268,15 @@ static void test_netlist(void **state) {
         free(R0);
         free(R);
     }
+    }
 
     /* every corner of the params' ranges, the whole tree retuned */
     const Circuit *c = w->c;
     int ncorner = c->nparams <= 8 ? 1 << c->nparams : 256;
     if (c->nparams > 0) {
         double *saved = calloc((size_t)w->nnodes, sizeof *saved), *p = calloc((size_t)c->nparams, sizeof *p);
-        double *M = calloc((size_t)(ne * ne) + 1, sizeof *M), *S = calloc((size_t)(np * np) + 1, sizeof *S);
-        double *R = calloc((size_t)np + 1, sizeof *R);
+        double *M = calloc((size_t)(nemax * nemax) + 1, sizeof *M), *S = calloc((size_t)(npmax * npmax) + 1, sizeof *S);
+        double *R = calloc((size_t)npmax + 1, sizeof *R);
         assert_non_null(saved);
         assert_non_null(p);
         assert_non_null(M);
@@ -301,7 +306,10 @@ static void test_netlist(void **state) {
             }
             retune_tree(w, p);
             check_adaptors(path, w, label, &x);
-            if (np > 0) {
+            for (int rb = 0; rb < w->nroots; rb++) {
+                const Root *r = &w->roots[rb];
+                if (r->nport + r->nnl == 0)
+                    continue;
                 for (int k = 0; k < r->nport; k++)
                     R[k] = r->edge[k].node->R;
                 char what[300];
@@ -318,9 +326,9 @@ static void test_netlist(void **state) {
         free(R);
     }
 
-    print_message("%-26s %2d adaptors: worst %.2e (|S00| %.1e); root %d ports %d sources: default %.2e, "
+    print_message("%-26s %2d adaptors: worst %.2e (|S00| %.1e); %d roots: default %.2e, "
                   "%d random sets %.2e",
-                  path, x.nadapt, x.node, x.s00, np, ne - np, x.root_default, NRANDOM, x.root_random);
+                  path, x.nadapt, x.node, x.s00, w->nroots, x.root_default, NRANDOM, x.root_random);
     if (c->nparams > 0)
         print_message(", %d param corners %.2e", ncorner, x.root_corner);
     print_message("\n");
