@@ -689,6 +689,29 @@ static void element(Elab *E, Scope *S, Line *l) {
         e = add_elem(E, S, l, E_NL, "", node[0], node[1]);
         e->nl = nonlinear(E, S, l);
         break;
+    case BK_T: { /* T NAME a a' b b' Z0= TD=: two ends joined by a delay */
+        KeyVal *z = key(l, "Z0"), *td = key(l, "TD");
+        if (!z || !td)
+            error_at(l->namepos, "transmission line '%s' needs Z0= and TD=", l->name);
+        double z0 = const_number(&z->val, "Z0="), d = const_number(&td->val, "TD=");
+        if (!(z0 > 0))
+            error_at(z->val.pos, "Z0 must be positive");
+        if (!(d > 0) || d > 10)
+            error_at(td->val.pos, "TD must lie between 0 and 10 s");
+        if (!(d * E->c->rate >= 0.5))
+            error_at(td->val.pos, "TD = %g s is shorter than half a sample at %g Hz: a line needs at least one "
+                     "sample of delay", d, E->c->rate);
+        Elem *e1 = add_elem(E, S, l, E_W, ".1", node[0], node[1]);
+        Elem *e2 = add_elem(E, S, l, E_W, ".2", node[2], node[3]);
+        e1->val = e2->val = expr_num(z0, z->val.pos);
+        e1->td = e2->td = d;
+        e1->peer = E->elems.len - 1;
+        e2->peer = E->elems.len - 2;
+        if (node[0] == node[1] || node[2] == node[3])
+            error_at(l->args[node[0] == node[1] ? 0 : 2].pos, "transmission line '%s' has both terminals of a "
+                     "port on one node", l->name);
+        return;
+    }
     case BK_POT: {
         Expr *R = need_key(E, S, l, "R"), *pos = need_key(E, S, l, "pos");
         KeyVal *tk = key(l, "taper");
@@ -1073,7 +1096,7 @@ const char *domain_unit(Domain d, char fn) {
 }
 
 void circuit_dump(const Circuit *c, FILE *out) {
-    static const char *kn[] = {"R", "C", "L", "V", "I", "NL"};
+    static const char *kn[] = {"R", "C", "L", "V", "I", "NL", "W"};
     double *p = circuit_defaults(c);
     fprintf(out, "voice %s, %d nodes, %d elements, rate %g\n", c->name, c->nnodes, c->nelems, c->rate);
     for (int i = 0; i < c->nelems; i++) {

@@ -56,6 +56,11 @@ typedef struct Ctx {
     int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
     int *moff;       /* root -> offset of its matrix in c_M */
     int nM;          /* entries of all root matrices */
+    int nline;       /* transmission lines */
+    int *line_of;    /* element -> its line, or -1 */
+    int *dl_off;     /* element (a line's end) -> its buffer in s_dl */
+    int *dl_size;    /* line -> buffer length (a power of two) */
+    int ndl;         /* entries of all delay buffers */
     const char **b;  /* tree node -> C expression of its reflected wave */
     const char **bpost; /* the same after the backward pass */
     const char **a;  /* tree node -> C expression of its incident wave */
@@ -172,6 +177,14 @@ static void emit_update(Ctx *x, Buf *o) {
         emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
+        if (e->kind == E_W && e->peer > i) /* one delay per line */
+            emit(o, "    if (full) { /* %s: delay in whole samples */\n"
+                    "        double t_d = floor(%.17g * st->fs + 0.5);\n"
+                    "        st->c_D[%d] = (unsigned)(t_d < 1 ? 1 : t_d > %d ? %d : t_d);\n    }\n",
+                 e->name, e->td, x->line_of[i], x->dl_size[x->line_of[i]] - 1, x->dl_size[x->line_of[i]] - 1);
+    }
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
         if (x->src[i] >= 0 && e->input < 0)
             emit(o, "    %s /* %s */\n        st->c_e[%d] = (real)(%s);\n", guard(expr_params(e->drive)),
                  e->name, x->src[i], cexpr(x, e->drive));
@@ -199,6 +212,13 @@ static void emit_forward(Ctx *x, Buf *o) {
                 emit(o, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
                 x->b[i] = format("t_b%d", i);
                 break;
+            case E_W: {
+                int k = x->line_of[n->elem];
+                emit(o, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
+                     x->dl_off[e->peer], k, x->dl_size[k] - 1, e->name);
+                x->b[i] = format("t_b%d", i);
+                break;
+            }
             case E_NL: unreachable();
             }
             continue;
@@ -315,6 +335,9 @@ static void emit_backward(Ctx *x, Buf *o) {
                 int r = x->react[i];
                 emit(o, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
+            } else if (e->kind == E_W) {
+                emit(o, "        s_dl[%d + (t_pos & %du)] = %s; /* %s */\n", x->dl_off[n->elem],
+                     x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
             } else {
                 emit(o, "        (void)%s; /* %s */\n", a, e->name);
             }
@@ -450,6 +473,12 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
     emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
     emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
     emit(wb, "    st->s_work = s_work;\n");
+    if (x->nline) {
+        emit(o, "    unsigned t_pos = st->s_pos;\n    real *const s_dl = st->s_dl;\n");
+        for (int k = 0; k < x->nline; k++)
+            emit(o, "    const unsigned k_D%d = st->c_D[%d];\n", k, k);
+        emit(wb, "    st->s_pos = t_pos;\n");
+    }
     if (x->nnl)
         emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
     for (int k = 0; k < x->nnl; k++) {
@@ -549,6 +578,23 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
 }
 
 static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
+    for (int i = 0; i < x->c->nelems; i++) {
+        const Elem *e = &x->c->elems[i];
+        if (e->kind != E_W)
+            continue;
+        int k = x->line_of[i];
+        /* The trapezoidal rule balances reactances against the power of
+         * two-sample averages of v and i; in those terms a line delays the
+         * averaged wave (a[m] + a[m-1]) / 2, each carrying T a^2 / (4 Z0). */
+        emit(o, "    { /* %s: the waves in flight */\n"
+                "        double s = 0;\n"
+                "        for (unsigned m = 1; m <= st->c_D[%d]; m++) {\n"
+                "            double a = st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)];\n"
+                "            s += 0.25 * a * a;\n"
+                "        }\n"
+                "        E += s / (4 * st->fs * st->c_R[%d]);\n    }\n",
+             e->name, k, x->dl_off[i], x->dl_size[k] - 1, x->dl_off[i], x->dl_size[k] - 1, x->w->leaf_of[i]->id);
+    }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
         if (e->nl->kind == NL_CONTACT)
@@ -730,6 +776,7 @@ static const char *ic_table(Ctx *x, int *nv) {
         case E_V: kind = e->val ? 5 : 3; break;
         case E_I: kind = e->val ? 6 : 4; break;
         case E_NL: kind = e->nl->kind == NL_CONTACT ? 8 : 7; break;
+        case E_W: kind = 0; break; /* an empty line looks like its Z0 */
         default: unreachable();
         }
         *nv += kind == 1 || kind == 3;
@@ -771,12 +818,15 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s c_pa[%d];    /* piecewise-linear wave maps: a at the breakpoints */\n"
         "    %s c_pb[%d];    /* b at the breakpoints */\n"
         "    %s c_ps[%d];    /* slope db/da of each segment */\n"
+        "    %s s_dl[%d];    /* transmission lines: the waves that entered each end */\n"
+        "    unsigned s_pos;        /* transmission lines: next write position */\n"
+        "    unsigned c_D[%d];      /* transmission lines: delay in samples */\n"
         "    double w_A[%d];        /* solve workspace (control rate only) */\n"
         "    double w_x[%d];\n"
         "    int w_piv[%d];",
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), r, M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
-        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), nd * nd, nd, nd);
+        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline), nd * nd, nd, nd);
 #undef M1
 }
 
@@ -892,6 +942,29 @@ static void index_tree(Ctx *x) {
         x->pwl_off[k] = x->npwl;
         x->npwl += x->pwl_n[k];
     }
+    /* delay lines: one buffer per end, holding the waves that entered it,
+     * long enough for the delay at 192 kHz or four times the netlist's rate */
+    x->line_of = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    x->dl_off = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    x->dl_size = arena_alloc(sizeof(int) * (size_t)(c->nelems + 1));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        x->line_of[i] = -1;
+        if (e->kind != E_W)
+            continue;
+        if (e->peer < i) {
+            x->line_of[i] = x->line_of[e->peer];
+        } else {
+            double fmax = c->rate * 4 > 192000 ? c->rate * 4 : 192000;
+            int need = (int)ceil(e->td * fmax) + 2, size = 1;
+            while (size < need)
+                size *= 2;
+            x->line_of[i] = x->nline;
+            x->dl_size[x->nline++] = size;
+        }
+        x->dl_off[i] = x->ndl;
+        x->ndl += x->dl_size[x->line_of[i]];
+    }
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
     for (int i = 0; i < c->nelems; i++)
         x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
@@ -912,6 +985,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     emit_backward(&x, &sample);
     emit_outputs(&x, &sample);
     emit_work(&x, &sample);
+    if (x.nline)
+        emit(&sample, "        t_pos++;\n");
     emit_hoist(&x, &hoist, &wb);
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);

@@ -255,6 +255,8 @@ typedef enum {
     E_V, /* voltage source: v(n0)-v(n1) = drive + val*i; val NULL: ideal */
     E_I, /* current source: drive flows n0 -> n1 through it; val: parallel R */
     E_NL, /* nonlinear one-port (diode, curve, contact): see NlSpec */
+    E_W,  /* one end of a lossless line: val = Z0; reflects the wave that
+             entered the other end `peer` td seconds earlier */
 } ElemKind;
 
 typedef enum {
@@ -291,6 +293,8 @@ typedef struct Elem {
     Expr *drive;       /* sources without input: control-rate value */
     Expr *ic;          /* C: initial voltage, L: initial current, or NULL */
     NlSpec *nl;        /* E_NL: the nonlinearity */
+    int peer;          /* E_W: element of the line's other end */
+    double td;         /* E_W: delay of the line, s */
     SrcPos pos;
     int user_kind;     /* BlockKind it came from */
 } Elem;

@@ -235,7 +235,7 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne) {
     }
 }
 
-/* Biconnected blocks of the reduced graph (alive edges): two edges share
+/* Biconnected blocks of the element graph (alive edges): two edges share
  * a block if a simple cycle holds both.  Blocks that meet at one node
  * exchange no current, so each is solved on its own.  Depth-first search
  * with low points and a stack of edges; returns the number of blocks and
@@ -350,8 +350,8 @@ Wdf *wdf_build(Circuit *c, double fs) {
         n->pmask = expr_params(e->val);
         E[i].node = w->leaf_of[i] = n;
     }
-    while (reduce_parallel(E, c->nelems) || reduce_series(E, c->nelems, c->nnodes))
-        ;
+    /* blocks first: reduction inside each never merges across a node that
+     * joins independent parts */
     int *block = arena_alloc(sizeof(int) * (size_t)c->nelems);
     w->nroots = blocks(E, c->nelems, c->nnodes, block);
     w->roots = arena_alloc(sizeof(Root) * (size_t)w->nroots);
@@ -359,8 +359,10 @@ Wdf *wdf_build(Circuit *c, double fs) {
     for (int b = 0; b < w->nroots; b++) {
         for (int i = 0; i < c->nelems; i++) {
             sub[i] = E[i];
-            sub[i].alive = E[i].alive && block[i] == b;
+            sub[i].alive = block[i] == b;
         }
+        while (reduce_parallel(sub, c->nelems) || reduce_series(sub, c->nelems, c->nnodes))
+            ;
         build_root(w, &w->roots[b], sub, c->nelems);
     }
     Vec order = {0};
