@@ -441,7 +441,14 @@ int scatter_thevenin(const Root *r, const double *R, int k, double *Rth);
 /* Scattering matrix of an adaptor (ports: up port first, then children),
  * n x n row-major; for the root, the port-to-port block. */
 void scatter_node(const WNode *n, double *S);
-/* Max |S^T G S - G| / max G over every adaptor; errors if it exceeds tol. */
+/* The root's matrix again, from its tableau of Kirchhoff's laws over its
+ * edges (KCL per core node, KVL per fundamental loop) rather than from
+ * its nodal equations; returns 0 or -1 if singular. */
+int scatter_tableau(const Root *r, const double *R, double *M);
+/* Prints every root's edges, tableau and solved matrix, with names. */
+void scatter_print_tableau(const Wdf *w, FILE *out);
+/* Largest losslessness error over every adaptor (|S^T G S - G| per port
+ * pair over sqrt(G_i G_j)); internal error if one exceeds tol. */
 double scatter_check(const Wdf *w, double tol);
 
 /* emit.c */

@@ -16,7 +16,7 @@ typedef struct Opts {
     const char *inputs[16];
     int ninputs;
     double seconds, rate;
-    bool check, single, dump_elab, dump_wdf;
+    bool check, single, dump_elab, dump_wdf, tableau;
     Solver solver;
     int table, maxit;
     double tol;
@@ -29,6 +29,7 @@ static void usage(FILE *f) {
         "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
         "                    [--csv OUT.csv] [--events FILE]\n"
         "       wdc FILE.wdn --dot OUT.dot\n"
+        "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n"
         "nonlinear elements: [--solver newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
         "SPEC: impulse[:A] | step[:A] | sine:FREQ[:A] | noise[:A] | FILE.wav (one per .input, in order)\n"
         "-delab, -dwdf print the elaborated circuit or the adaptor tree.\n"
@@ -73,6 +74,7 @@ static Opts parse_args(int argc, char **argv) {
         else if (!strcmp(a, "--rate")) o.rate = number_arg(a, TAKE());
         else if (!strcmp(a, "-delab")) o.dump_elab = true;
         else if (!strcmp(a, "-dwdf")) o.dump_wdf = true;
+        else if (!strcmp(a, "--tableau")) o.tableau = true;
         else if (!strcmp(a, "--input")) {
             if (o.ninputs == 16)
                 usage_error("too many --input options (%s)", "16 at most");
@@ -414,6 +416,8 @@ int main(int argc, char **argv) {
     diag.jmp = NULL;
     if (o.dump_wdf)
         wdf_dump(w, stdout);
+    if (o.tableau)
+        scatter_print_tableau(w, stdout);
     if (o.dot) {
         FILE *f = fopen(o.dot, "w");
         if (!f) {
@@ -423,7 +427,7 @@ int main(int argc, char **argv) {
         wdf_dot(w, f);
         fclose(f);
     }
-    if (o.check || (o.dot && !o.render))
+    if (o.check || ((o.dot || o.tableau) && !o.render))
         return 0;
     EmitOpts eo = {.single = o.single, .outdir = o.outdir, .solver = o.solver, .table = o.table, .tol = o.tol,
                    .maxit = o.maxit};

@@ -171,6 +171,14 @@ double scatter_check(const Wdf *w, double tol) {
 
 static double root_check(const Root *r, double tol) {
     int np = r->nport + r->nnl, ne = r->nedge;
+    double *Mt = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    if (scatter_tableau(r, r->R, Mt) != 0)
+        die("the root's tableau is singular where its nodal equations are not");
+    double diff = 0, scale = 0;
+    for (int i = 0; i < ne * ne; i++) {
+        diff = fmax(diff, fabs(Mt[i] - r->M[i]));
+        scale = fmax(scale, fabs(r->M[i]));
+    }
     double *S = arena_alloc(sizeof(double) * (size_t)(np * np + 1));
     for (int k = 0; k < np; k++)
         for (int j = 0; j < np; j++)
@@ -179,10 +187,181 @@ static double root_check(const Root *r, double tol) {
     for (int k = 0; k < np; k++)
         lo = fmin(lo, r->R[k]), hi = fmax(hi, r->R[k]);
     /* the nodal solve loses digits with the spread of port resistances */
-    if (err > fmax(tol, 64 * DBL_EPSILON * hi / lo))
+    double bound = fmax(tol, 64 * DBL_EPSILON * hi / lo);
+    if (err > bound)
         die("root adaptor is not lossless (error %g)", err);
+    if (diff > bound * fmax(scale, 1) * 1e3)
+        die("the root's tableau and nodal solutions differ by %g", diff);
     for (int k = r->nport; k < np; k++)
         if (fabs(S[k * np + k]) > tol)
             die("nonlinear edge %d of the root is not adapted (S = %g)", k, S[k * np + k]);
     return err;
+}
+
+/* ---- the tableau ----
+ *
+ * The same root written as Kirchhoff's laws over its edges: one KCL row
+ * per core node (the reference left out) and one KVL row per fundamental
+ * loop of a spanning tree.  A port or nonlinear edge k enters through its
+ * waves, v = (a + b) / 2 and i = (a - b) / (2 R); an ideal V source through
+ * its current (v = e known), an ideal I source through its voltage
+ * (i = j known).  Unknowns: a of each port, i of each V, v of each I;
+ * knowns: b of each port, the drives.  T * unknowns = U * knowns. */
+
+typedef struct Tableau {
+    int n;          /* rows = unknowns = edges */
+    double *T, *U;  /* n x n each, row-major */
+    int nkcl;       /* KCL rows first, then KVL rows */
+} Tableau;
+
+/* Fundamental loops: BFS tree over the core's nodes (reference = -1 is
+ * node index ncore); loop of each non-tree edge with signs along it. */
+static void loops(const Root *r, int *tree_edge, double *loopm, int *nloops) {
+    int nn = r->ncore + 1, ne = r->nedge;
+    int *parent = arena_alloc(sizeof(int) * (size_t)nn), *pedge = arena_alloc(sizeof(int) * (size_t)nn);
+    int *queue = arena_alloc(sizeof(int) * (size_t)nn), *depth = arena_alloc(sizeof(int) * (size_t)nn);
+    bool *seen = arena_alloc(sizeof(bool) * (size_t)nn);
+#define NODE(x) ((x) < 0 ? r->ncore : (x))
+    int head = 0, tail = 0;
+    queue[tail++] = r->ncore;
+    seen[r->ncore] = true;
+    parent[r->ncore] = -1;
+    while (head < tail) {
+        int v = queue[head++];
+        for (int k = 0; k < ne; k++) {
+            int p = NODE(r->edge[k].p), q = NODE(r->edge[k].q);
+            if (p != v && q != v)
+                continue;
+            int u = p == v ? q : p;
+            if (seen[u])
+                continue;
+            seen[u] = true;
+            parent[u] = v;
+            pedge[u] = k;
+            depth[u] = depth[v] + 1;
+            tree_edge[k] = 1;
+            queue[tail++] = u;
+        }
+    }
+    *nloops = 0;
+    for (int k = 0; k < ne; k++) {
+        if (tree_edge[k])
+            continue;
+        double *row = loopm + (size_t)(*nloops)++ * (size_t)ne;
+        row[k] = 1; /* around the loop in the edge's direction: p -> q, then back q -> p in the tree */
+        int a = NODE(r->edge[k].q), b = NODE(r->edge[k].p);
+        while (a != b) { /* walk both ends up to their common ancestor */
+            if (depth[a] >= depth[b]) {
+                int e = pedge[a];
+                row[e] += NODE(r->edge[e].p) == a ? 1 : -1; /* traversed a -> parent */
+                a = parent[a];
+            } else {
+                int e = pedge[b];
+                row[e] += NODE(r->edge[e].p) == b ? -1 : 1; /* traversed parent -> b */
+                b = parent[b];
+            }
+        }
+    }
+#undef NODE
+}
+
+static Tableau tableau(const Root *r, const double *R) {
+    int ne = r->nedge, nl;
+    Tableau t = {.n = ne};
+    t.T = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    t.U = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    int *tree = arena_alloc(sizeof(int) * (size_t)ne);
+    double *L = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    loops(r, tree, L, &nl);
+    /* edge k's current and voltage as (coefficient on unknown k, on known k) */
+    for (int k = 0; k < ne; k++) {
+        const RootEdge *e = &r->edge[k];
+        bool port = e->kind == 0 || e->kind == 3;
+        double iu = port ? 1 / (2 * R[k]) : e->kind == 1 ? 1 : 0;  /* i = iu*x_k + ik*known_k */
+        double ik = port ? -1 / (2 * R[k]) : e->kind == 2 ? 1 : 0;
+        double vu = port ? 0.5 : e->kind == 2 ? 1 : 0;
+        double vk = port ? 0.5 : e->kind == 1 ? 1 : 0;
+        for (int n = 0; n < r->ncore; n++) { /* KCL: current leaving node n */
+            double s = (e->p == n) - (e->q == n);
+            t.T[n * ne + k] += s * iu;
+            t.U[n * ne + k] -= s * ik;
+        }
+        for (int l = 0; l < nl; l++) { /* KVL */
+            double s = L[l * ne + k];
+            t.T[(r->ncore + l) * ne + k] += s * vu;
+            t.U[(r->ncore + l) * ne + k] -= s * vk;
+        }
+    }
+    t.nkcl = r->ncore;
+    if (r->ncore + nl != ne)
+        die("tableau has %d rows for %d edges", r->ncore + nl, ne);
+    return t;
+}
+
+int scatter_tableau(const Root *r, const double *R, double *M) {
+    Tableau t = tableau(r, R);
+    int ne = t.n;
+    double *A = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    memcpy(A, t.T, sizeof(double) * (size_t)(ne * ne));
+    memcpy(M, t.U, sizeof(double) * (size_t)(ne * ne));
+    return solve(A, ne, M, ne);
+}
+
+static const char *edge_label(const Circuit *c, const WNode *n) {
+    if (n->kind == W_LEAF)
+        return c->elems[n->elem].name;
+    const char *s = "(";
+    for (int i = 0; i < n->nchild; i++)
+        s = format("%s%s%s%s", s, i ? (n->kind == W_SERIES ? " + " : " | ") : "", n->pol[i] < 0 ? "-" : "",
+                   edge_label(c, n->child[i]));
+    return format("%s)", s);
+}
+
+void scatter_print_tableau(const Wdf *w, FILE *out) {
+    const Circuit *c = w->c;
+    for (int b = 0; b < w->nroots; b++) {
+        const Root *r = &w->roots[b];
+        int ne = r->nedge;
+        const char **name = arena_alloc(sizeof(char *) * (size_t)ne);
+        const char **unk = arena_alloc(sizeof(char *) * (size_t)ne);
+        const char **kn = arena_alloc(sizeof(char *) * (size_t)ne);
+        fprintf(out, "root %d: %d edges, %d core nodes besides the reference '%s'\n", b, ne, r->ncore,
+                c->nodes[r->ref_node]);
+        for (int k = 0; k < ne; k++) {
+            const RootEdge *e = &r->edge[k];
+            name[k] = e->kind == 0 ? edge_label(c, e->node) : c->elems[e->elem].name;
+            const char *pn = e->p >= 0 ? c->nodes[r->core_node[e->p]] : c->nodes[r->ref_node];
+            const char *qn = e->q >= 0 ? c->nodes[r->core_node[e->q]] : c->nodes[r->ref_node];
+            bool port = e->kind == 0 || e->kind == 3;
+            unk[k] = format(port ? "a%d" : e->kind == 1 ? "i%d" : "v%d", k);
+            kn[k] = format(port ? "b%d" : e->kind == 1 ? "e%d" : "j%d", k);
+            fprintf(out, "  edge %d: %s, %s -> %s, %s%s\n", k, name[k], pn, qn,
+                    e->kind == 0 ? "port" : e->kind == 1 ? "ideal V" : e->kind == 2 ? "ideal I" : "nonlinear, port",
+                    port ? format(" R = %.6g", r->R[k]) : "");
+        }
+        Tableau t = tableau(r, r->R);
+        fprintf(out, "  tableau T x = U k, x = [");
+        for (int k = 0; k < ne; k++)
+            fprintf(out, "%s%s", k ? " " : "", unk[k]);
+        fprintf(out, "], k = [");
+        for (int k = 0; k < ne; k++)
+            fprintf(out, "%s%s", k ? " " : "", kn[k]);
+        fprintf(out, "]\n");
+        for (int i = 0; i < ne; i++) {
+            fprintf(out, "  %-4s", i < t.nkcl ? "KCL" : "KVL");
+            for (int k = 0; k < ne; k++)
+                fprintf(out, " %11.4g", t.T[i * ne + k]);
+            fprintf(out, "  |");
+            for (int k = 0; k < ne; k++)
+                fprintf(out, " %11.4g", t.U[i * ne + k]);
+            fprintf(out, "\n");
+        }
+        fprintf(out, "  solved: x = M k\n");
+        for (int i = 0; i < ne; i++) {
+            fprintf(out, "  %-4s =", unk[i]);
+            for (int k = 0; k < ne; k++)
+                fprintf(out, " %+11.4g %s", r->M[i * ne + k], kn[k]);
+            fprintf(out, "\n");
+        }
+    }
 }
