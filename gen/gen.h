@@ -68,6 +68,10 @@ char *read_file(const char *path, size_t *len);
 
 void error_at(SrcPos pos, const char *fmt, ...)
     __attribute__((format(printf, 2, 3), noreturn));
+/* An error followed by notes: error_begin prints it, the notes follow,
+ * error_end unwinds as error_at does. */
+void error_begin(SrcPos pos, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void error_end(void) __attribute__((noreturn));
 void warn_at(SrcPos pos, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 void note_at(SrcPos pos, const char *fmt, ...)

@@ -118,6 +118,20 @@ void error_at(SrcPos pos, const char *fmt, ...) {
     exit(1);
 }
 
+void error_begin(SrcPos pos, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vreport(pos, "error", fmt, ap);
+    va_end(ap);
+    diag.errors++;
+}
+
+void error_end(void) {
+    if (diag.jmp)
+        longjmp(*diag.jmp, 1);
+    exit(1);
+}
+
 void warn_at(SrcPos pos, const char *fmt, ...) {
     va_list ap;
     va_start(ap, fmt);

@@ -142,12 +142,14 @@ static void check_nonlinear(Wdf *wd, const Root *r) {
         return;
     const Elem *first = &wd->c->elems[r->edge[r->nport].elem];
     const Elem *second = &wd->c->elems[r->edge[r->nport + 1].elem];
-    note_at(first->pos, "'%s' is one of them", first->name);
+    error_begin(second->pos, "'%s' and '%s' are coupled with no delay between them: each instantaneously "
+                "coupled part may hold one nonlinear element; a delay element between them (a transmission "
+                "line, string or tube) would decouple them", first->name, second->name);
+    note_at(first->pos, "'%s' is here", first->name);
     for (int k = r->nport + 2; k < r->nport + r->nnl; k++)
-        note_at(wd->c->elems[r->edge[k].elem].pos, "'%s' is another", wd->c->elems[r->edge[k].elem].name);
-    error_at(second->pos, "'%s' and '%s' are coupled with no delay between them: each instantaneously "
-             "coupled part may hold one nonlinear element; a delay element between them (a transmission "
-             "line, string or tube) would decouple them", first->name, second->name);
+        note_at(wd->c->elems[r->edge[k].elem].pos, "'%s', coupled to them too, is here",
+                wd->c->elems[r->edge[k].elem].name);
+    error_end();
 }
 
 /* Gives nonlinear edge k the resistance the rest of the core presents to

@@ -1,0 +1,134 @@
+/*
+ * test_nldiag.c - diagnostics of nonlinear elements and transmission
+ * lines, each with its line and column: coupled nonlinearities, a diode
+ * across an ideal source, a diode with no closed path, bad curves, solver
+ * choices, lines shorter than a sample.  Each netlist goes through the
+ * phases the command line runs (load, structure, emit) until one reports.
+ */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gen.h"
+
+/* Runs the phases on `text`; returns the first line of what they printed,
+ * or "" if all succeeded. */
+static char *first_report(const char *text, Solver solver) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *mem = open_memstream(&buf, &len);
+    FILE *saved = diag.out;
+    diag.out = mem;
+    Circuit *c = wdc_load_string("t.wdn", text);
+    if (c) {
+        jmp_buf jb;
+        diag.jmp = &jb;
+        if (!setjmp(jb)) {
+            Wdf *w = wdf_build(c, c->rate);
+            char dir[] = "/tmp/wdc-nldiag.XXXXXX";
+            if (mkdtemp(dir)) {
+                EmitOpts eo = {.outdir = dir, .solver = solver, .table = 64, .tol = 1e-12, .maxit = 50};
+                emit_voice(w, &eo);
+                char cmd[64];
+                snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+                if (system(cmd) != 0)
+                    fprintf(mem, "cannot remove %s\n", dir);
+            }
+        }
+        diag.jmp = NULL;
+    }
+    fclose(mem);
+    diag.out = saved;
+    char *nl = strchr(buf, '\n');
+    if (nl)
+        *nl = 0;
+    return buf;
+}
+
+static void expect(const char *text, const char *want) {
+    char *got = first_report(text, SOLVER_DEFAULT);
+    if (strcmp(got, want))
+        fail_msg("netlist:\n%s\nexpected: %s\n     got: %s", text, want, got);
+    free(got);
+}
+
+#define MODEL ".model dd D Is=2.52n n=1.752\n"
+
+static void test_coupled_nonlinearities(void **s) {
+    (void)s;
+    /* two diodes with no delay between them: refused, naming both */
+    expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nR2 a b 1k\nD2 b 0 dd\n",
+           "t.wdn:6:1: error: 'D1' and 'D2' are coupled with no delay between them: each instantaneously "
+           "coupled part may hold one nonlinear element; a delay element between them (a transmission line, "
+           "string or tube) would decouple them");
+    /* a line between them decouples: accepted */
+    expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nT1 a 0 b 0 Z0=100 TD=1m\nR2 b 0 1k\nD2 b 0 dd\n", "");
+    /* sharing only ground is no coupling either */
+    expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nI2 0 b in R=1k\nD2 b 0 dd\n", "");
+}
+
+static void test_unadaptable(void **s) {
+    (void)s;
+    expect(".input in\n" MODEL "V1 a 0 in\nD1 a 0 dd\nR1 a 0 1k\n",
+           "t.wdn:4:1: error: diode 'D1' sits directly across an ideal source: nothing limits its current "
+           "(put a resistance in series)");
+    expect(".input in\n" MODEL "V1 a 0 in R=1k\nR1 a b 1k\nD1 b c dd\nR2 c 0 1k\nC1 b c 1u\nR3 a c 1k\n", "");
+}
+
+static void test_curves(void **s) {
+    (void)s;
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:-1 0:0 1:0.5 2:0.2)\n",
+           "t.wdn:3:39: error: curve currents must not decrease (a falling curve has no unique wave map)");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:1 0:0 1:1)\n",
+           "t.wdn:3:21: error: point -1:1 delivers power: a passive curve has v*i >= 0");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:-1 1:3)\n",
+           "t.wdn:3:20: error: the curve passes v = 0 at i = 1: a passive curve goes through the origin");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(0:0 0:1)\n",
+           "t.wdn:3:25: error: curve voltages must increase from point to point");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(0:0)\n", "t.wdn:3:20: error: a curve needs at least two points");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:-2 0:0 1:1) solver=newton\n",
+           "t.wdn:3:43: error: a curve given by points is solved exactly by its piecewise-linear wave map: use "
+           "solver=pwl");
+}
+
+static void test_solvers(void **s) {
+    (void)s;
+    expect(".ic v(h)=1\nmass M h m=10m\ncontact H1 h 0 k=1e9 alpha=2.5 solver=pwl\n",
+           "t.wdn:3:39: error: a contact has memory (its compression): only solver=newton applies");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:-1 1:1) solver=fast\n",
+           "t.wdn:3:39: error: solver= takes pwl, newton or omega");
+    expect(".input in\n.param is 1n min=1p max=1u\nV1 a 0 in R=1k\nD1 a 0 dd solver=pwl\n.model dd D Is={is}\n",
+           "t.wdn:4:1: error: diode 'D1': a piecewise-linear table is made at compile time, so Is, n and Vt must "
+           "not depend on params (use solver=newton or omega)");
+    expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D Is=0\n",
+           "t.wdn:3:1: error: diode 'D1' has Is = 0; it must be greater than 0");
+    expect(".ic v(h)=1\nmass M h m=10m\ncontact H1 h 0 k=1e9 alpha=0.5\n",
+           "t.wdn:3:9: error: contact 'H1' has alpha = 0.5; it must be at least 1");
+    expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D pair=2\n", "t.wdn:4:18: error: pair= takes 0 or 1");
+}
+
+static void test_lines(void **s) {
+    (void)s;
+    expect(".input in\nV1 a 0 in R=1k\nT1 a 0 b 0 Z0=50 TD=1u\nR2 b 0 50\n",
+           "t.wdn:3:21: error: TD = 1e-06 s is shorter than half a sample at 48000 Hz: a line needs at least one "
+           "sample of delay");
+    expect(".input in\nV1 a 0 in R=1k\nT1 a 0 b 0 Z0=50\nR2 b 0 50\n",
+           "t.wdn:3:1: error: transmission line 'T1' needs Z0= and TD=");
+    expect(".input in\nV1 a 0 in R=1k\nT1 a 0 b 0 Z0=-50 TD=1m\nR2 b 0 50\n", "t.wdn:3:15: error: Z0 must be positive");
+    expect(".input in\n.param z 50\nV1 a 0 in R=1k\nT1 a 0 b 0 Z0={z} TD=1m\nR2 b 0 50\n",
+           "t.wdn:4:16: error: Z0= must be a number (params are not known at compile time)");
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_coupled_nonlinearities), cmocka_unit_test(test_unadaptable),
+        cmocka_unit_test(test_curves), cmocka_unit_test(test_solvers), cmocka_unit_test(test_lines),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
