@@ -1,7 +1,8 @@
 # wdc: wave-digital compiler and sound runtime.
 # `make` builds bin/wdc; `make demo` installs what is missing, builds,
 # compiles every example netlist and renders it to out/; `make test` runs
-# the test suite; `make bench` prints ns/sample of every example voice.
+# the test suite; `make bench` prints ns/sample of every example voice, then
+# the speed and accuracy of each nonlinear one per solver and rate.
 
 CC      ?= cc
 CFLAGS  ?= -O2 -g
@@ -28,8 +29,9 @@ build/%.o: %.c
 build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/embed.sh
 	@mkdir -p $(dir $@)
 	sh scripts/embed.sh $@ tmpl_voice_c=templates/voice.c.tmpl tmpl_voice_h=templates/voice.h.tmpl \
-		tmpl_wdvoice_h=runtime/wdvoice.h tmpl_nl_diode=templates/nl_diode.c.tmpl tmpl_nl_omega=templates/nl_omega.c.tmpl \
-		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_contact=templates/nl_contact.c.tmpl
+		tmpl_wdvoice_h=runtime/wdvoice.h tmpl_nl_diode_i=templates/nl_diode_i.c.tmpl tmpl_nl_diode=templates/nl_diode.c.tmpl tmpl_nl_omega=templates/nl_omega.c.tmpl \
+		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_contact=templates/nl_contact.c.tmpl \
+		tmpl_nl_memory=templates/nl_memory.c.tmpl
 
 build/gen/templates.o: build/gen/templates.c
 	$(CC) $(CFLAGS) -c $< -o $@
@@ -60,10 +62,14 @@ test: deps
 run-tests: all $(TEST_BINS)
 	sh tests/run.sh $(TEST_BINS)
 
-bench: all build/bench/bench
+bench: all build/bench/bench build/bench/nlbench
 	build/bench/bench $(NETLISTS)
+	build/bench/nlbench $(NETLISTS)
 
 build/bench/bench: build/bench/bench.o build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+
+build/bench/nlbench: build/bench/nlbench.o build/tests/refsim.o build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
 
 format:

@@ -30,6 +30,17 @@ typedef struct Scope {
     SrcPos usepos;        /* the instance name on its `use` line */
 } Scope;
 
+/* mutator X a b c d type=RC|RL: the nonlinear resistor across (c, d)
+ * appears at (a, b) as a nonlinear capacitor (RC: q = g(v)) or inductor
+ * (RL: i = g(flux)). */
+typedef struct Mutator {
+    const char *name;
+    int n[4];
+    char type;     /* 'C' or 'L' */
+    SrcPos pos;
+    Line *line;
+} Mutator;
+
 typedef struct Elab {
     Circuit *c;
     Vec nodes;     /* const char* */
@@ -43,6 +54,7 @@ typedef struct Elab {
     Vec top;       /* Line* of the top level, includes expanded */
     Vec names;     /* Elem names' first positions, parallel to elems */
     Vec incstack;  /* const char* resolved paths being included */
+    Vec mutators;  /* Mutator* */
     int *node_deg;
     bool have_voice, have_domain, have_rate;
     SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
@@ -685,6 +697,24 @@ static void element(Elab *E, Scope *S, Line *l) {
         e = add_elem(E, S, l, E_R, "", node[0], node[1]);
         e->val = div1(need_key(E, S, l, "c"));
         break;
+    case BK_MUTATOR: {
+        Mutator *m = arena_alloc(sizeof(Mutator));
+        KeyVal *t = key(l, "type");
+        const char *ty = t && t->val.kind == VAL_NAME ? t->val.name : "";
+        if (!t || (strcmp(ty, "RC") && strcmp(ty, "RL")))
+            error_at(t ? t->val.pos : l->namepos, "mutator '%s' needs type=RC or type=RL", l->name);
+        m->name = format("%s%s", S->prefix, l->name);
+        for (int i = 0; i < 4; i++)
+            m->n[i] = node[i];
+        m->type = ty[1];
+        m->pos = l->namepos;
+        m->line = l;
+        if (node[0] == node[1] || node[2] == node[3])
+            error_at(l->args[node[0] == node[1] ? 0 : 2].pos, "mutator '%s' has both terminals of a port on one "
+                     "node", l->name);
+        vec_push(&E->mutators, m);
+        return;
+    }
     case BK_D: case BK_NLRES: case BK_CONTACT:
         e = add_elem(E, S, l, E_NL, "", node[0], node[1]);
         e->nl = nonlinear(E, S, l);
@@ -782,6 +812,75 @@ static void instantiate(Elab *E, Scope *S, Line *l) {
         if (bl->kind >= 0)
             element(E, in, bl);
     }
+}
+
+/* Each mutator takes the nonlinear resistor across its second port, which
+ * must be alone there, and becomes a nonlinear reactance at its first. */
+static void mutate(Elab *E) {
+    for (int k = 0; k < E->mutators.len; k++) {
+        Mutator *m = E->mutators.data[k];
+        int found = -1, others = 0;
+        for (int i = 0; i < E->elems.len; i++) {
+            Elem *e = E->elems.data[i];
+            bool across = (e->n[0] == m->n[2] && e->n[1] == m->n[3]) || (e->n[0] == m->n[3] && e->n[1] == m->n[2]);
+            bool touches = e->n[0] == m->n[2] || e->n[0] == m->n[3] || e->n[1] == m->n[2] || e->n[1] == m->n[3];
+            if (across && e->kind == E_NL && e->nl->kind != NL_CONTACT && !e->nl->mutated && found < 0)
+                found = i;
+            else if (touches)
+                others++;
+        }
+        if (found < 0)
+            error_at(m->pos, "mutator '%s' needs a diode or nonlinear resistor across its second port", m->name);
+        if (others || m->n[2] == 0 || m->n[3] == 0)
+            error_at(m->pos, "mutator '%s': its second port must hold only the nonlinear resistor, on nodes of "
+                     "its own (not ground)", m->name);
+        Elem *in = E->elems.data[found];
+        NlSpec *nl = arena_alloc(sizeof(NlSpec));
+        *nl = *in->nl;
+        if (in->n[0] != m->n[2]) { /* the resistor runs d -> c: its curve turns over */
+            if (nl->kind == NL_DIODE && !nl->pair)
+                error_at(in->pos, "the diode '%s' on mutator '%s' must have its anode on the mutator's third node",
+                         in->name, m->name);
+            if (nl->kind == NL_CURVE) {
+                double *v = arena_alloc(sizeof(double) * (size_t)nl->npts), *c = arena_alloc(sizeof(double) * (size_t)nl->npts);
+                for (int j = 0; j < nl->npts; j++) {
+                    v[j] = -nl->cv[nl->npts - 1 - j];
+                    c[j] = -nl->ci[nl->npts - 1 - j];
+                }
+                nl->cv = v;
+                nl->ci = c;
+            }
+        }
+        if (nl->solver_pos.file && nl->solver != SOLVER_NEWTON)
+            error_at(nl->solver_pos, "through a mutator the element has memory: only solver=newton applies");
+        nl->solver = SOLVER_NEWTON;
+        nl->mutated = m->type;
+        /* the resistor leaves the network; the reactance takes the mutator's name */
+        E->elems.data[found] = E->elems.data[--E->elems.len];
+        Elem *e = add_elem(E, &(Scope){.prefix = ""}, m->line, E_NL, "", m->n[0], m->n[1]);
+        e->name = m->name;
+        e->nl = nl;
+        e->user_kind = BK_MUTATOR;
+    }
+    if (!E->mutators.len)
+        return;
+    /* the nodes of the mutators' second ports are left with no element */
+    int *map = arena_alloc(sizeof(int) * (size_t)E->nodes.len);
+    bool *used = arena_alloc(sizeof(bool) * (size_t)E->nodes.len);
+    used[0] = true;
+    for (int i = 0; i < E->elems.len; i++)
+        for (int k = 0; k < 2; k++)
+            used[((Elem *)E->elems.data[i])->n[k]] = true;
+    Vec nodes = {0};
+    for (int n = 0; n < E->nodes.len; n++)
+        if (used[n]) {
+            map[n] = nodes.len;
+            vec_push(&nodes, E->nodes.data[n]);
+        }
+    for (int i = 0; i < E->elems.len; i++)
+        for (int k = 0; k < 2; k++)
+            ((Elem *)E->elems.data[i])->n[k] = map[((Elem *)E->elems.data[i])->n[k]];
+    E->nodes = nodes;
 }
 
 /* ---- probes and initial conditions ---- */
@@ -1033,6 +1132,7 @@ static Circuit *elaborate(SrcFile *f) {
         if (l->kind >= 0)
             element(&E, &top, l);
     }
+    mutate(&E);
     for (int i = 0; i < E.top.len; i++) {
         Line *l = E.top.data[i];
         if (!strcmp(l->head, ".output"))

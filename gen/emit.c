@@ -10,8 +10,15 @@
 
 #include "gen.h"
 
-extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode[], tmpl_nl_omega[],
-    tmpl_nl_pwl[], tmpl_nl_contact[];
+extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_diode[], tmpl_nl_omega[],
+    tmpl_nl_pwl[], tmpl_nl_contact[], tmpl_nl_memory[];
+
+/* Arguments that name a mutated element's inner law for the mem_ kernels. */
+static const char *mem_args(int k, const NlSpec *nl) {
+    if (nl->kind == NL_DIODE)
+        return format("c_nl%d_0, c_nl%d_1, %d, NULL, NULL, 0", k, k, nl->pair);
+    return format("0, 1, 0, mem_v%d, mem_i%d, %d", k, k, nl->npts);
+}
 
 typedef struct Buf {
     char *s;
@@ -264,6 +271,16 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     int it = x->opt->maxit;
     emit(o, "        real t_bn%d; /* %s (%s:%d:%d) */\n        {\n", k, e->name, e->pos.file->path, e->pos.line,
          e->pos.col);
+    if (nl->mutated) {
+        emit(o, "            const double t_v = mem_solve('%c', t_an%d, k_Rn%d, s_nX%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %s, %d);\n",
+             nl->mutated, k, k, k, k, k, mem_args(k, nl), tol, it);
+        if (nl->mutated == 'L')
+            emit(o, "            s_nX%d += (real)(0.5 * k_T * (t_v + s_nv%d));\n", k, k);
+        else
+            emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
+        return;
+    }
     switch (nl->kind == NL_CONTACT ? SOLVER_NEWTON : solver_of(x, nl)) {
     case SOLVER_PWL:
         emit(o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
@@ -557,7 +574,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
-        if (e->nl->kind == NL_CONTACT)
+        if (e->nl->kind == NL_CONTACT || e->nl->mutated == 'L')
             emit(o, "    st->s_nX[%d] = (real)(%s - %s);\n", k, ic_node_value(x, 'x', e->n[0]),
                  ic_node_value(x, 'x', e->n[1]));
         emit(probes, "        st->s_nv[%d] = (real)((%s) - (%s));\n", k,
@@ -597,6 +614,13 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
+        if (e->nl->mutated == 'L')
+            emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d]; (void)c_nl%d_0; (void)c_nl%d_1; "
+                    "E += mem_G(st->s_nX[%d], %s); }\n", k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl));
+        if (e->nl->mutated == 'C')
+            emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d], v = st->s_nv[%d]; double d; "
+                    "(void)c_nl%d_0; (void)c_nl%d_1; E += v * mem_g(v, %s, &d) - mem_G(v, %s); }\n",
+                 k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl), mem_args(k, e->nl));
         if (e->nl->kind == NL_CONTACT)
             emit(o, "    { double X = st->s_nX[%d] - st->c_nl[%d], al = st->c_nl[%d]; "
                     "if (X > 0) E += st->c_nl[%d] * pow(X, al + 1) / (al + 1); } /* %s */\n",
@@ -663,10 +687,26 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
 
 static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *force) {
-    bool diode = false, omega = false, pwl = false, contact = false;
+    bool diode = false, omega = false, pwl = false, contact = false, memory = false;
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
-        if (e->nl->kind == NL_CONTACT) {
+        if (e->nl->mutated) {
+            memory = true;
+            if (e->nl->kind == NL_CURVE) {
+                Buf v = {0}, i = {0};
+                for (int j = 0; j < e->nl->npts; j++) {
+                    emit(&v, "%s%.17g", j ? ", " : "", e->nl->cv[j]);
+                    emit(&i, "%s%.17g", j ? ", " : "", e->nl->ci[j]);
+                }
+                emit(tables, "/* %s: its inner resistor's curve (V, A) */\n", e->name);
+                emit(tables, "static const double mem_v%d[] = {%s};\nstatic const double mem_i%d[] = {%s};\n", k,
+                     str(&v), k, str(&i));
+            }
+            if (e->nl->mutated == 'L')
+                emit(force, "    if (k == %d) { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d]; double d; "
+                            "(void)c_nl%d_0; (void)c_nl%d_1; return mem_g(st->s_nX[%d], %s, &d); }\n",
+                     k, k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl));
+        } else if (e->nl->kind == NL_CONTACT) {
             contact = true;
             emit(force, "    if (k == %d) { double dX, dXd; return contact_f(st->s_nX[%d] - st->c_nl[%d], 0, "
                         "st->c_nl[%d], st->c_nl[%d], 0, &dX, &dXd); }\n", k, k, 4 * k + 3, 4 * k, 4 * k + 1);
@@ -687,6 +727,8 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
             omega |= solver_of(x, e->nl) == SOLVER_OMEGA;
         }
     }
+    if (diode || memory)
+        emit(kernels, "%s", tmpl_nl_diode_i);
     if (diode)
         emit(kernels, "%s", tmpl_nl_diode);
     if (omega)
@@ -695,6 +737,8 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
         emit(kernels, "%s", tmpl_nl_pwl);
     if (contact)
         emit(kernels, "%s", tmpl_nl_contact);
+    if (memory)
+        emit(kernels, "%s", tmpl_nl_memory);
 }
 
 /* ---- tables and descriptors ---- */
@@ -775,7 +819,7 @@ static const char *ic_table(Ctx *x, int *nv) {
         case E_L: kind = 2; break;
         case E_V: kind = e->val ? 5 : 3; break;
         case E_I: kind = e->val ? 6 : 4; break;
-        case E_NL: kind = e->nl->kind == NL_CONTACT ? 8 : 7; break;
+        case E_NL: kind = e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? 8 : 7; break;
         case E_W: kind = 0; break; /* an empty line looks like its Z0 */
         default: unreachable();
         }

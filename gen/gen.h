@@ -286,6 +286,8 @@ typedef struct NlSpec {
     Expr *k, *alpha, *lambda, *gap; /* contact: N/m^alpha, exponent, s/m, m */
     Solver solver;
     SrcPos solver_pos;
+    char mutated;        /* through a mutator: 'C' for q = g(v) (R-C type),
+                            'L' for i = g(flux) (R-L type), 0 for i = g(v) */
 } NlSpec;
 
 typedef struct Elem {
