@@ -10,7 +10,7 @@
 
 #include "gen.h"
 
-extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_diode[], tmpl_nl_omega[],
+extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
     tmpl_nl_pwl[], tmpl_nl_contact[], tmpl_nl_memory[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
@@ -730,7 +730,7 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
     if (diode || memory)
         emit(kernels, "%s", tmpl_nl_diode_i);
     if (diode)
-        emit(kernels, "%s", tmpl_nl_diode);
+        emit(kernels, "%s%s", tmpl_nl_wright, tmpl_nl_diode);
     if (omega)
         emit(kernels, "%s", tmpl_nl_omega);
     if (pwl)

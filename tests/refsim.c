@@ -36,6 +36,20 @@ struct refsim {
     int singular0;    /* the network of sample -1 was singular */
     int round_state;  /* 0, or 64 / 32: state and factors rounded to
                          double / float (refsim_round_state) */
+    /* nonlinear elements (E_NL) */
+    int nnl;          /* how many */
+    real *G;          /* the step matrix before factoring, N x N */
+    real *J;          /* Newton: Jacobian and its factors, N x N */
+    real *x, *dx, *xt, *r, *rt; /* Newton: iterate, step, trial, residuals */
+    real *nlp;        /* 4 values per element: diode Is, n Vt, -, -;
+                         contact k, alpha, lambda, gap */
+    real *cx;         /* contact, nonlinear inductor: integral of its
+                         voltage at the last sample (see has_flux) */
+    real gscale;      /* largest conductance in the step matrix */
+    int nl_maxit;     /* most Newton iterations one step took */
+    long nl_iters;    /* Newton iterations over all steps */
+    long nl_unconverged; /* steps that hit the iteration cap */
+    long nl_forced;   /* iterations whose step no halving made descend */
 };
 
 static real rd_(const refsim *s, real x) {
@@ -160,6 +174,29 @@ static int has_value(const Elem *e) { return e->val != NULL; }
 
 static int self_loop(const Elem *e) { return e->n[0] == e->n[1]; }
 
+static int is_nl(const Elem *e) { return e->kind == E_NL && e->nl != NULL; }
+
+static int is_contact(const Elem *e) { return is_nl(e) && e->nl->kind == NL_CONTACT; }
+
+/* Elements whose state is the integral X of their voltage: contacts
+ * (their compression plus gap) and nonlinear inductors (their flux). */
+static int has_flux(const Elem *e) {
+    return is_contact(e) || (is_nl(e) && e->nl->mutated == 'L');
+}
+
+/* Whether a resistive solve may rely on element e to carry current: a
+ * nonlinear element is left out (as if open) when it may conduct nothing
+ * (a contact that is open, a curve with a flat segment), a diode counts
+ * since its slope never vanishes. */
+static int nl_open_edge(const Elem *e) {
+    return is_nl(e) && (e->nl->kind != NL_DIODE || e->nl->mutated);
+}
+
+/* Current at sample -1 of a nonlinear element (those that carry one at
+ * rest act as current sources then): a contact's elastic force, a
+ * nonlinear inductor's law at its initial flux. */
+static real nl_rest_current(const refsim *s, int e);
+
 /* ---- stamps ---- */
 
 /* Adds g between the node unknowns of nodes a and b (0: ground). */
@@ -215,12 +252,261 @@ static void update_values(refsim *s) {
     const Circuit *c = s->c;
     for (int e = 0; e < c->nelems; e++) {
         const Elem *el = &c->elems[e];
+        if (is_nl(el)) {
+            const NlSpec *nl = el->nl;
+            real *q = s->nlp + 4 * e;
+            s->val[e] = 0.0;
+            q[0] = q[1] = q[2] = q[3] = 0.0;
+            if (nl->kind == NL_DIODE) {
+                q[0] = expr_eval(nl->Is, s->params);
+                q[1] = (real)expr_eval(nl->n, s->params) *
+                       (real)expr_eval(nl->Vt, s->params);
+            } else if (nl->kind == NL_CONTACT) {
+                q[0] = expr_eval(nl->k, s->params);
+                q[1] = expr_eval(nl->alpha, s->params);
+                q[2] = expr_eval(nl->lambda, s->params);
+                q[3] = expr_eval(nl->gap, s->params);
+            }
+            continue;
+        }
         int v = el->kind == E_R || el->kind == E_C || el->kind == E_L ||
                 has_value(el);
         s->val[e] = v ? elem_value(c, el, s->params) : 0.0;
         if ((el->kind == E_V || el->kind == E_I) && el->input < 0)
             s->cdrv[e] = elem_drive(c, el, s->params);
     }
+}
+
+/* ---- nonlinear elements ---- */
+
+/* Sum of the .ic x() values given for graph node `node`. */
+static real ic_x(const refsim *s, int node) {
+    real x = 0.0;
+    if (node == 0)
+        return 0.0;
+    for (int j = 0; j < s->c->nics; j++)
+        if (s->c->ics[j].fn == 'x' && s->c->ics[j].node == node)
+            x += expr_eval(s->c->ics[j].val, s->params);
+    return x;
+}
+
+/* Elastic force k C^alpha of contact e at compression C (0 if C <= 0). */
+static real contact_elastic(const refsim *s, int e, real C) {
+    const real *q = s->nlp + 4 * e;
+    return C > 0.0 ? q[0] * powl(C, q[1]) : 0.0;
+}
+
+/* The law y = f(x) of a diode or curve (its i(v) as a resistor), and its
+ * slope. */
+static real law(const refsim *s, int e, real x, real *dy) {
+    const NlSpec *nl = s->c->elems[e].nl;
+    const real *q = s->nlp + 4 * e;
+    *dy = 0.0;
+    if (nl->kind == NL_DIODE) {
+        real u = x / q[1];
+        if (nl->pair) {
+            *dy = 2.0 * q[0] * coshl(u) / q[1];
+            return 2.0 * q[0] * sinhl(u);
+        }
+        *dy = q[0] * expl(u) / q[1];
+        return q[0] * expm1l(u);
+    }
+    int n = nl->npts, k = 0;
+    if (n < 2)
+        return n == 1 ? (real)nl->ci[0] : 0.0;
+    while (k + 2 < n && x >= (real)nl->cv[k + 1])
+        k++;
+    real x0 = nl->cv[k], x1 = nl->cv[k + 1];
+    real y0 = nl->ci[k], y1 = nl->ci[k + 1];
+    *dy = (y1 - y0) / (x1 - x0);
+    return y0 + (x - x0) * *dy;
+}
+
+/* The integral of the law from 0 to x. */
+static real law_integral(const refsim *s, int e, real x) {
+    const NlSpec *nl = s->c->elems[e].nl;
+    const real *q = s->nlp + 4 * e;
+    if (nl->kind == NL_DIODE) {
+        real u = x / q[1];
+        return nl->pair ? 2.0 * q[0] * q[1] * (coshl(u) - 1.0)
+                        : q[0] * (q[1] * expm1l(u) - x);
+    }
+    /* trapezoids between 0, the points strictly between 0 and x, and x:
+     * exact for a piecewise-linear law */
+    real acc = 0.0, t = 0.0, d, yt = law(s, e, 0.0, &d);
+    int n = nl->npts;
+    for (int j = 0; j < n; j++) {
+        int k = x > 0 ? j : n - 1 - j;
+        real u = nl->cv[k];
+        if (!(x > 0 ? u > 0.0 && u < x : u < 0.0 && u > x))
+            continue;
+        real yu = law(s, e, u, &d);
+        acc += 0.5 * (u - t) * (yt + yu);
+        t = u;
+        yt = yu;
+    }
+    return acc + 0.5 * (x - t) * (yt + law(s, e, x, &d));
+}
+
+/* Current of nonlinear element e at voltage v in the sample being
+ * solved, and its slope di/dv in *g.  A contact's compression is its
+ * integral at the last sample advanced by the trapezoidal rule to v, and
+ * its compression rate is v itself.  Behind a mutator the law f of the
+ * diode or curve gives i = f(X) with X the trapezoidal integral of v (R-L
+ * type: a nonlinear inductor, X its flux), or the charge q = f(v), with
+ * i the trapezoidal derivative of q (R-C type: a nonlinear capacitor). */
+static real nl_eval(const refsim *s, int e, real v, real *g) {
+    const NlSpec *nl = s->c->elems[e].nl;
+    const real *q = s->nlp + 4 * e;
+    real h = 0.5 * s->T, dy;
+    *g = 0.0;
+    if (nl->mutated == 'L') {
+        real i = law(s, e, s->cx[e] + h * (v + s->v[e]), &dy);
+        *g = dy * h;
+        return i;
+    }
+    if (nl->mutated == 'C') {
+        real d0, i = (law(s, e, v, &dy) - law(s, e, s->v[e], &d0)) / h - s->i[e];
+        *g = dy / h;
+        return i;
+    }
+    switch (nl->kind) {
+    case NL_DIODE:
+    case NL_CURVE:
+        return law(s, e, v, g);
+    case NL_CONTACT: {
+        real C = s->cx[e] + h * (v + s->v[e]) - q[3];
+        real d = 1.0 + q[2] * v;
+        if (!(C > 0.0) || !(d > 0.0))
+            return 0.0;
+        real p = q[0] * powl(C, q[1]);
+        *g = q[1] * p / C * d * h + p * q[2];
+        return p * d;
+    }
+    }
+    return 0.0;
+}
+
+static real nl_rest_current(const refsim *s, int e) {
+    const Elem *el = &s->c->elems[e];
+    real d;
+    if (is_contact(el))
+        return contact_elastic(s, e, s->cx[e] - s->nlp[4 * e + 3]);
+    if (el->nl->mutated == 'L')
+        return law(s, e, s->cx[e], &d);
+    return 0.0;
+}
+
+/* Newton's residual of the step system at x: r = G x - rhs plus the
+ * currents of the nonlinear elements, and with J != NULL its Jacobian. */
+static void nl_residual(refsim *s, const real *x, const real *rhs, real *r,
+                        real *J) {
+    const Circuit *c = s->c;
+    int N = s->N;
+    for (int k = 0; k < N; k++) {
+        real acc = -rhs[k];
+        const real *row = s->G + (size_t)k * (size_t)N;
+        for (int j = 0; j < N; j++)
+            acc += row[j] * x[j];
+        r[k] = acc;
+    }
+    if (J)
+        memcpy(J, s->G, sizeof(real) * (size_t)N * (size_t)N);
+    for (int e = 0; e < c->nelems; e++) {
+        const Elem *el = &c->elems[e];
+        if (!is_nl(el) || self_loop(el))
+            continue;
+        int a = el->n[0], b = el->n[1];
+        real v = (a ? x[a - 1] : 0.0) - (b ? x[b - 1] : 0.0), g;
+        real i = nl_eval(s, e, v, &g);
+        if (a)
+            r[a - 1] += i;
+        if (b)
+            r[b - 1] -= i;
+        if (J)
+            stamp_g(J, N, a, b, g);
+    }
+}
+
+static real sumsq(const real *r, int n) {
+    real f = 0.0;
+    for (int k = 0; k < n; k++)
+        f += r[k] * r[k];
+    return isfinite(f) ? f : INFINITY;
+}
+
+#define NL_TOL 1e-13L    /* converged: every |dx| below this times its scale */
+#define NL_MAXIT 200     /* Newton iterations per sample at most */
+#define NL_HALVINGS 60   /* halvings of a step that raises the residual */
+
+/* Solves the step system with its nonlinear elements by damped Newton,
+ * starting from the last sample's solution; rhs (the step's right-hand
+ * side) is replaced by the solution, as lu_solve does for linear ones.
+ * A Newton step whose residual is larger than the present one is halved
+ * until it is not; the iteration stops once the full step is below
+ * NL_TOL relative to the largest node voltage (for node unknowns) or to
+ * the larger of the largest branch current and the current the largest
+ * conductance of the network drives at that voltage (branch unknowns:
+ * a branch current that is the small difference of large ones is known
+ * only to that). */
+static void nl_solve(refsim *s, real *rhs) {
+    const Circuit *c = s->c;
+    int N = s->N, nn = s->nn;
+    real *x = s->x, *dx = s->dx, *xt = s->xt, *r = s->r, *rt = s->rt;
+    for (int k = 1; k < c->nnodes; k++)
+        x[k - 1] = s->nodev[k];
+    for (int e = 0; e < c->nelems; e++)
+        if (s->br[e] >= 0)
+            x[s->br[e]] = s->i[e];
+    nl_residual(s, x, rhs, r, s->J);
+    real f0 = sumsq(r, N);
+    int it, converged = 0;
+    for (it = 0; it < NL_MAXIT && !converged; it++) {
+        if (lu_factor(s->J, s->piv, N) != 0)
+            die("refsim: singular Newton matrix at sample %ld", s->t);
+        for (int k = 0; k < N; k++)
+            dx[k] = -r[k];
+        lu_solve(s->J, s->piv, N, dx);
+        real sn = 0.0, sb = 0.0;
+        for (int k = 0; k < N; k++) {
+            real m = fmaxl(fabsl(x[k]), fabsl(x[k] + dx[k]));
+            if (k < nn)
+                sn = fmaxl(sn, m);
+            else
+                sb = fmaxl(sb, m);
+        }
+        converged = 1;
+        for (int k = 0; k < N && converged; k++) {
+            real sc = fmaxl(k < nn ? sn : fmaxl(sb, sn * s->gscale), 1e-300L);
+            if (!(fabsl(dx[k]) <= NL_TOL * sc))
+                converged = 0;
+        }
+        real lam = 1.0;
+        int ok = converged;
+        for (int h = 0; h <= NL_HALVINGS && !ok; h++) {
+            for (int k = 0; k < N; k++)
+                xt[k] = x[k] + lam * dx[k];
+            nl_residual(s, xt, rhs, rt, NULL);
+            if (sumsq(rt, N) <= f0)
+                ok = 1;
+            else
+                lam *= 0.5;
+        }
+        if (!ok) {
+            lam = 1.0;
+            s->nl_forced++;
+        }
+        for (int k = 0; k < N; k++)
+            x[k] += lam * dx[k];
+        nl_residual(s, x, rhs, r, s->J);
+        f0 = sumsq(r, N);
+    }
+    s->nl_iters += it;
+    if (it > s->nl_maxit)
+        s->nl_maxit = it;
+    if (!converged)
+        s->nl_unconverged++;
+    memcpy(rhs, x, sizeof(real) * (size_t)N);
 }
 
 static void build_step_matrix(refsim *s) {
@@ -246,9 +532,9 @@ static void build_step_matrix(refsim *s) {
             stamp_branch(A, N, a, b, k);
             A[k * N + k] -= 2.0 * x / s->T;
             break;
-        default: /* not linear: refused by refsim_new */
-            break;
         }
+        default: /* nonlinear elements enter through nl_residual */
+            break;
         case E_V: {
             int k = s->br[e];
             stamp_branch(A, N, a, b, k);
@@ -262,6 +548,20 @@ static void build_step_matrix(refsim *s) {
         }
     }
     pin_unused(c, A, N);
+    if (s->nnl) {
+        /* Newton works on the unfactored matrix (nl_solve), which alone
+         * may be singular (a node joined to the rest by diodes only). */
+        memcpy(s->G, A, sizeof(real) * (size_t)N * (size_t)N);
+        s->gscale = 0.0;
+        for (int r = 0; r < s->nn; r++)
+            for (int k = 0; k < s->nn; k++)
+                s->gscale = fmaxl(s->gscale, fabsl(A[r * N + k]));
+        if (s->round_state)
+            for (size_t k = 0; k < (size_t)N * (size_t)N; k++)
+                s->G[k] = rd(s->G[k]);
+        s->dirty = 0;
+        return;
+    }
     /* Solvability was checked structurally in refsim_new; a zero pivot
      * here can only come from values that cancel exactly. */
     if (lu_factor(A, s->piv, N) != 0)
@@ -318,7 +618,12 @@ static void build_init_system(const refsim *s, const int *br0, int N,
                 stamp_g(A, N, a, b, 1.0 / val);
             stamp_j(x, a, b, d);
             break;
-        default: /* not linear: refused by refsim_new */
+        case E_NL:
+            /* diodes and curves open; a contact pushes with its elastic
+             * force at its initial compression */
+            stamp_j(x, a, b, nl_rest_current(s, e));
+            break;
+        default:
             break;
         }
     }
@@ -340,7 +645,10 @@ static void initial_state(refsim *s) {
         if ((el->kind == E_C || el->kind == E_V) && !self_loop(el))
             br0[e] = N++;
         vedge[e] = el->kind == E_C || (el->kind == E_V && !has_value(el));
-        iedge[e] = el->kind == E_L || (el->kind == E_I && !has_value(el));
+        iedge[e] = el->kind == E_L || (el->kind == E_I && !has_value(el)) ||
+                   is_nl(el);
+        if (has_flux(el))
+            s->cx[e] = ic_x(s, el->n[0]) - ic_x(s, el->n[1]);
     }
     s->singular0 = !solvable(c, vedge, iedge);
 
@@ -391,7 +699,11 @@ static void initial_state(refsim *s) {
             s->v[e] = vv;
             s->i[e] = s->d[e] + (has_value(el) ? vv / s->val[e] : 0.0);
             break;
-        default: /* not linear: refused by refsim_new */
+        case E_NL:
+            s->v[e] = vv;
+            s->i[e] = nl_rest_current(s, e);
+            break;
+        default:
             break;
         }
     }
@@ -429,6 +741,13 @@ int refsim_linear_kind(int kind) {
 
 int refsim_can_simulate(const Circuit *c) {
     for (int e = 0; e < c->nelems; e++)
+        if (!refsim_linear_kind((int)c->elems[e].kind) && !is_nl(&c->elems[e]))
+            return 0;
+    return 1;
+}
+
+int refsim_is_linear(const Circuit *c) {
+    for (int e = 0; e < c->nelems; e++)
         if (!refsim_linear_kind((int)c->elems[e].kind))
             return 0;
     return 1;
@@ -454,8 +773,10 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     s->nodev = calloc((size_t)c->nnodes + 1, sizeof(real));
     s->px = calloc(nos, sizeof(real));
     s->pv = calloc(nos, sizeof(real));
+    s->nlp = calloc(4 * nes, sizeof(real));
+    s->cx = calloc(nes, sizeof(real));
     if (!s->br || !s->params || !s->val || !s->cdrv || !s->v || !s->i ||
-        !s->d || !s->nodev || !s->px || !s->pv) {
+        !s->d || !s->nodev || !s->px || !s->pv || !s->nlp || !s->cx) {
         refsim_free(s);
         return NULL;
     }
@@ -480,7 +801,9 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
         if ((el->kind == E_L || el->kind == E_V) && !self_loop(el))
             s->br[e] = N++;
         vedge[e] = el->kind == E_V && !has_value(el);
-        iedge[e] = el->kind == E_I && !has_value(el);
+        iedge[e] = (el->kind == E_I && !has_value(el)) || nl_open_edge(el);
+        if (is_nl(el))
+            s->nnl++;
     }
     int ok = solvable(c, vedge, iedge);
     free(vedge);
@@ -489,6 +812,18 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     s->A = calloc((size_t)N * (size_t)N + 1, sizeof(real));
     s->piv = malloc(sizeof(int) * ((size_t)N + 1));
     s->rhs = calloc((size_t)N + 1, sizeof(real));
+    if (s->nnl) {
+        size_t nsq = (size_t)N * (size_t)N + 1, n1 = (size_t)N + 1;
+        s->G = calloc(nsq, sizeof(real));
+        s->J = calloc(nsq, sizeof(real));
+        s->x = calloc(n1, sizeof(real));
+        s->dx = calloc(n1, sizeof(real));
+        s->xt = calloc(n1, sizeof(real));
+        s->r = calloc(n1, sizeof(real));
+        s->rt = calloc(n1, sizeof(real));
+        if (!s->G || !s->J || !s->x || !s->dx || !s->xt || !s->r || !s->rt)
+            ok = 0;
+    }
     if (!ok || !s->A || !s->piv || !s->rhs) {
         refsim_free(s);
         return NULL;
@@ -540,9 +875,9 @@ void refsim_step(refsim *s, const double *in, double *out) {
             real g = 2.0 * s->val[e] / s->T;
             stamp_j(rhs, a, b, -(g * s->v[e] + s->i[e]));
             break;
-        default: /* not linear: refused by refsim_new */
-            break;
         }
+        default: /* a contact's history enters through nl_eval */
+            break;
         case E_L: {
             real z = 2.0 * s->val[e] / s->T;
             rhs[s->br[e]] = -z * s->i[e] - s->v[e];
@@ -556,7 +891,10 @@ void refsim_step(refsim *s, const double *in, double *out) {
             break;
         }
     }
-    lu_solve(s->A, s->piv, N, rhs);
+    if (s->nnl)
+        nl_solve(s, rhs);
+    else
+        lu_solve(s->A, s->piv, N, rhs);
     for (int k = 1; k < c->nnodes; k++)
         s->nodev[k] = rhs[k - 1];
 
@@ -574,8 +912,6 @@ void refsim_step(refsim *s, const double *in, double *out) {
             real g = 2.0 * s->val[e] / s->T;
             s->v[e] = vv;
             s->i[e] = self_loop(el) ? 0.0 : g * (vv - pv) - pi;
-            break;
-        default: /* not linear: refused by refsim_new */
             break;
         }
         case E_L:
@@ -599,6 +935,16 @@ void refsim_step(refsim *s, const double *in, double *out) {
             s->d[e] = dn;
             break;
         }
+        case E_NL: {
+            real g, ii = self_loop(el) ? 0.0 : nl_eval(s, e, vv, &g);
+            if (has_flux(el))
+                s->cx[e] += 0.5 * s->T * (vv + pv);
+            s->v[e] = vv;
+            s->i[e] = ii;
+            break;
+        }
+        default:
+            break;
         }
     }
     s->work += s->T * pw;
@@ -608,6 +954,7 @@ void refsim_step(refsim *s, const double *in, double *out) {
         for (int e = 0; e < c->nelems; e++) {
             s->v[e] = rd(s->v[e]);
             s->i[e] = rd(s->i[e]);
+            s->cx[e] = rd(s->cx[e]);
         }
         s->work = rd(s->work);
     }
@@ -647,8 +994,27 @@ double refsim_energy(const refsim *s) {
             E += 0.5 * s->val[e] * s->v[e] * s->v[e];
         else if (el->kind == E_L)
             E += 0.5 * s->val[e] * s->i[e] * s->i[e];
+        else if (is_contact(el)) {
+            const real *q = s->nlp + 4 * e;
+            real C = s->cx[e] - q[3];
+            if (C > 0.0)
+                E += q[0] * powl(C, q[1] + 1.0) / (q[1] + 1.0);
+        } else if (is_nl(el) && el->nl->mutated == 'L') {
+            E += law_integral(s, e, s->cx[e]);
+        } else if (is_nl(el) && el->nl->mutated == 'C') {
+            real d, v = s->v[e];
+            E += v * law(s, e, v, &d) - law_integral(s, e, v);
+        }
     }
     return (double)E;
+}
+
+void refsim_nl_stats(const refsim *s, refsim_nl_info *info) {
+    info->steps = s->nnl ? s->t : 0;
+    info->iters = s->nl_iters;
+    info->maxit = s->nl_maxit;
+    info->unconverged = s->nl_unconverged;
+    info->forced = s->nl_forced;
 }
 
 double refsim_work(const refsim *s) { return (double)s->work; }
@@ -684,5 +1050,14 @@ void refsim_free(refsim *s) {
     free(s->d);
     free(s->px);
     free(s->pv);
+    free(s->nlp);
+    free(s->cx);
+    free(s->G);
+    free(s->J);
+    free(s->x);
+    free(s->dx);
+    free(s->xt);
+    free(s->r);
+    free(s->rt);
     free(s);
 }

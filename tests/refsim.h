@@ -1,9 +1,11 @@
 /*
  * refsim.h - a reference simulator for elaborated circuits.
  *
- * Simulates a linear Circuit (gen.h) by modified nodal analysis with
+ * Simulates a Circuit (gen.h) by modified nodal analysis with
  * trapezoidal companion models, independently of the wave-digital
  * structure, so a voice can be checked against it sample for sample.
+ * Linear networks take one solve per sample; networks with nonlinear
+ * elements (E_NL) take a converged implicit step (see below).
  *
  * Conventions (the same as a voice's):
  *   - Every element's current i flows from its n[0] through it to n[1];
@@ -31,7 +33,32 @@
  *     element's current (a source's whole current, parallel resistor
  *     included); PR_X the trapezoidal integral of v(n0) - v(n1), starting
  *     from the .ic x() values of its nodes.
- *   - energy: sum of C v^2/2 + L i^2/2 at the last computed sample.
+ *   - E_NL (current i from n[0] through it to n[1], v = v(n0) - v(n1)):
+ *     diode i = Is (exp(v/(n Vt)) - 1), a pair i = 2 Is sinh(v/(n Vt));
+ *     curve: linear interpolation of its points, the end segments
+ *     extended; contact: X[n] = X[n-1] + T/2 (v[n] + v[n-1]) from
+ *     X[-1] = x_ic(n0) - x_ic(n1) (the .ic x() values, 0 if none),
+ *     compression C = X - gap, and i = k C^alpha (1 + lambda v) while
+ *     C > 0 and 1 + lambda v > 0, else 0.  Behind a mutator
+ *     (NlSpec.mutated) the diode's or curve's law f makes a nonlinear
+ *     inductor, i = f(X) with the flux X integrated as a contact's (R-L
+ *     type), or a nonlinear capacitor, charge f(v) and
+ *     i[n] = (f(v[n]) - f(v[n-1])) 2/T - i[n-1] (R-C type).  Each sample
+ *     solves the whole
+ *     nodal system with these laws by damped Newton from the last
+ *     sample's solution: a step that raises the residual is halved (up to
+ *     60 times), and the iteration ends when the full step is below 1e-13
+ *     of the largest node voltage (node unknowns) or branch current
+ *     (branch unknowns), at most 200 iterations (refsim_nl_stats counts
+ *     the samples that did not converge).
+ *     At sample -1 diodes, curves and nonlinear capacitors are open
+ *     (they carry nothing at rest), a contact is a current source of its
+ *     elastic force k C^alpha at its initial compression (0 if C <= 0),
+ *     and a nonlinear inductor one of f(X) at its initial flux.
+ *   - energy: sum of C v^2/2 + L i^2/2 at the last computed sample, plus
+ *     k C^(alpha+1)/(alpha+1) for each contact with C > 0, F(X) for each
+ *     nonlinear inductor and v f(v) - F(v) for each nonlinear capacitor,
+ *     F being the integral of f from 0.
  *     work: sum over steps of -T * vbar * ibar over the sources, bars
  *     being averages of this and the previous sample, using the ideal part
  *     of a resistive source (its drive) for v (V) or i (I).
@@ -44,14 +71,18 @@
 typedef struct refsim refsim;
 
 /* Whether an element kind is one of the linear ones refsim simulates
- * (E_R, E_C, E_L, E_V, E_I), and whether every element of c is. */
+ * (E_R, E_C, E_L, E_V, E_I); whether refsim simulates every element of c
+ * (those and E_NL; not lines, E_W); and whether every element of c is
+ * linear. */
 int refsim_linear_kind(int kind);
 int refsim_can_simulate(const Circuit *c);
+int refsim_is_linear(const Circuit *c);
 /* A simulator of `c` at sample rate fs (Hz) with the given param values
  * (Circuit.nparams of them; NULL: the defaults), at sample -1.  The
- * Circuit must outlive it.  Returns NULL if out of memory, if c has a
- * nonlinear element, or if the network cannot be simulated (a loop of
- * ideal voltage sources or a cut of ideal current sources). */
+ * Circuit must outlive it.  Returns NULL if out of memory, if c has an
+ * element refsim does not simulate, or if the network cannot be simulated
+ * (a loop of ideal voltage sources or a cut of ideal current sources;
+ * contacts and curves count as open here, since they may carry nothing). */
 refsim *refsim_new(const Circuit *c, double fs, const double *params);
 /* Changes param `id` (clamped to [min, max] as a voice does); it takes
  * effect from the next step on. */
@@ -80,6 +111,16 @@ int refsim_init_singular(const refsim *s);
  * causes, a floor for what a voice computing in it can reach.  0: off
  * (the default). */
 void refsim_round_state(refsim *s, int bits);
+/* How the Newton solves of a network with nonlinear elements went. */
+typedef struct refsim_nl_info {
+    long steps;       /* samples solved by Newton */
+    long iters;       /* Newton iterations over them */
+    int maxit;        /* most iterations one sample took */
+    long unconverged; /* samples that reached the iteration cap */
+    long forced;      /* iterations whose step raised the residual however
+                         much it was halved, and was taken whole */
+} refsim_nl_info;
+void refsim_nl_stats(const refsim *s, refsim_nl_info *info);
 void refsim_free(refsim *s);
 
 #endif

@@ -146,10 +146,10 @@ typedef struct tl_run {
 /* Runs a fresh instance of cls (initialised at o->fs) and a refsim of c
  * over o->nframes samples: blocks of o->block frames, cut also where a
  * change falls, each change applied to both before the sample it names.
- * The voice's outputs are ordered as c->outs.  A circuit with nonlinear
- * elements runs the voice alone (have_ref = 0, reference buffers zero).
- * Returns 0, or -1 (message printed) if the two do not have the same
- * ports, refsim cannot simulate a linear circuit, or memory runs out. */
+ * The voice's outputs are ordered as c->outs.  A circuit refsim cannot
+ * simulate (a transmission line) runs the voice alone (have_ref = 0,
+ * reference buffers zero).  Returns 0, or -1 (message printed) if the two
+ * do not have the same ports or memory runs out. */
 int tl_run_side_by_side(const Circuit *c, const wdv_class *cls,
                         const tl_run_opts *o, tl_run *r);
 void tl_run_free(tl_run *r);
