@@ -457,7 +457,7 @@ static void emit_outputs(Ctx *x, Buf *o) {
         case PR_I: case PR_F: emit(o, "        out[%d][n] = (double)(%s);\n", k, elem_i(x, p->elem)); break;
         case PR_X:
             emit(o, "        {\n            const real t_v = %s;\n", pair_v(x, p->n));
-            emit(o, "            s_x%d += k_hT * (t_v + s_xv%d);\n            s_xv%d = t_v;\n", xp, xp, xp);
+            emit(o, "            s_x%d += 0.5 * k_T * ((double)t_v + (double)s_xv%d);\n            s_xv%d = t_v;\n", xp, xp, xp);
             emit(o, "            out[%d][n] = (double)s_x%d;\n        }\n", k, xp);
             xp++;
             break;
@@ -496,8 +496,7 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
             emit(o, "    const unsigned k_D%d = st->c_D[%d];\n", k, k);
         emit(wb, "    st->s_pos = t_pos;\n");
     }
-    if (x->nnl)
-        emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
+    emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
     for (int k = 0; k < x->nnl; k++) {
         emit(o, "    const real k_Rn%d = st->c_Rn[%d], k_gn%d = (real)(0.5 / st->c_Rn[%d]);\n", k, k, k, k);
         emit(o, "    (void)k_Rn%d;\n    (void)k_gn%d;\n", k, k);
@@ -534,7 +533,7 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
     int xp = 0;
     for (int k = 0; k < c->nouts; k++)
         if (c->outs[k].kind == PR_X) {
-            emit(o, "    real s_x%d = st->s_x[%d], s_xv%d = st->s_xv[%d];\n", xp, xp, xp, xp);
+            emit(o, "    double s_x%d = st->s_x[%d];\n    real s_xv%d = st->s_xv[%d];\n", xp, xp, xp, xp);
             emit(wb, "    st->s_x[%d] = s_x%d;\n    st->s_xv[%d] = flush(s_xv%d);\n", xp, xp, xp, xp);
             xp++;
         }
@@ -585,7 +584,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
         const Probe *p = &c->outs[k];
         if (p->kind != PR_X)
             continue;
-        emit(o, "    st->s_x[%d] = (real)(%s - %s);\n", xp, ic_node_value(x, 'x', p->n[0]),
+        emit(o, "    st->s_x[%d] = (double)(%s - %s);\n", xp, ic_node_value(x, 'x', p->n[0]),
              ic_node_value(x, 'x', p->n[1]));
         emit(probes, "        st->s_xv[%d] = (real)((%s) - (%s));\n", xp,
              p->n[0] ? format("x[%d]", p->n[0] - 1) : "0", p->n[1] ? format("x[%d]", p->n[1] - 1) : "0");
@@ -677,7 +676,7 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
             for (int k = 0; k < c->nouts; k++)
                 if (c->outs[k].kind == PR_X) {
                     if (fn == 'x' && c->outs[k].n[0] == nd && c->outs[k].n[1] == 0)
-                        emit(cases, "            st->s_x[%d] = (real)values[k];\n", xp);
+                        emit(cases, "            st->s_x[%d] = values[k];\n", xp);
                     xp++;
                 }
             emit(cases, "            break;\n");
@@ -850,7 +849,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s c_e[%d];     /* control-rate source drives */\n"
         "    %s s_a[%d];     /* reactances: last incident wave */\n"
         "    %s s_b[%d];     /* reactances: last reflected wave */\n"
-        "    %s s_x[%d];     /* displacement probes */\n"
+        "    double s_x[%d];        /* displacement probes (double: an integral gathers rounding) */\n"
         "    %s s_xv[%d];    /* displacement probes: last velocity */\n"
         "    %s s_we[%d];    /* sources: last drive */\n"
         "    %s s_wi[%d];    /* sources: last current (V) or voltage (I) */\n"
@@ -869,7 +868,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    double w_x[%d];\n"
         "    int w_piv[%d];",
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
-        M1(x->nreact), r, M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
+        M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
         r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline), nd * nd, nd, nd);
 #undef M1
 }
