@@ -302,8 +302,18 @@ int scatter_tableau(const Root *r, const double *R, double *M) {
     Tableau t = tableau(r, R);
     int ne = t.n;
     double *A = arena_alloc(sizeof(double) * (size_t)(ne * ne));
-    memcpy(A, t.T, sizeof(double) * (size_t)(ne * ne));
-    memcpy(M, t.U, sizeof(double) * (size_t)(ne * ne));
+    /* rows mix conductances and plain 1/2s: scale each to its largest
+     * entry so the singularity test compares like with like */
+    for (int i = 0; i < ne; i++) {
+        double m = 0;
+        for (int k = 0; k < ne; k++)
+            m = fmax(m, fabs(t.T[i * ne + k]));
+        m = m > 0 ? m : 1;
+        for (int k = 0; k < ne; k++) {
+            A[i * ne + k] = t.T[i * ne + k] / m;
+            M[i * ne + k] = t.U[i * ne + k] / m;
+        }
+    }
     return solve(A, ne, M, ne);
 }
 
