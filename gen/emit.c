@@ -495,6 +495,13 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
         for (int k = 0; k < x->nline; k++)
             emit(o, "    const unsigned k_D%d = st->c_D[%d];\n", k, k);
         emit(wb, "    st->s_pos = t_pos;\n");
+        /* what the block wrote into the lines, flushed like the other states */
+        for (int i = 0; i < c->nelems; i++)
+            if (c->elems[i].kind == E_W)
+                emit(wb, "    for (int m = 1; m <= nframes && m <= %d; m++) {\n"
+                         "        real *t_w = &s_dl[%d + ((t_pos - (unsigned)m) & %du)];\n"
+                         "        *t_w = flush(*t_w);\n    }\n",
+                     x->dl_size[x->line_of[i]], x->dl_off[i], x->dl_size[x->line_of[i]] - 1);
     }
     emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
     for (int k = 0; k < x->nnl; k++) {
@@ -503,7 +510,7 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
         for (int j = 0; j < 4; j++)
             emit(o, "    const double c_nl%d_%d = st->c_nl[%d];\n    (void)c_nl%d_%d;\n", k, j, 4 * k + j, k, j);
         emit(o, "    real s_nX%d = st->s_nX[%d], s_nv%d = st->s_nv[%d];\n", k, k, k, k);
-        emit(wb, "    st->s_nX[%d] = s_nX%d;\n    st->s_nv[%d] = flush(s_nv%d);\n", k, k, k, k);
+        emit(wb, "    st->s_nX[%d] = flush(s_nX%d);\n    st->s_nv[%d] = flush(s_nv%d);\n", k, k, k, k);
         if (x->pwl_n[k])
             emit(o, "    const real *const c_pa%d = st->c_pa + %d, *const c_pb%d = st->c_pb + %d, "
                     "*const c_ps%d = st->c_ps + %d;\n", k, x->pwl_off[k], k, x->pwl_off[k], k, x->pwl_off[k]);
