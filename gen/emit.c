@@ -278,7 +278,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
             emit(o, "            s_nX%d += (real)(0.5 * k_T * (t_v + s_nv%d));\n", k, k);
         else
             emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
+        emit(o, "            s_nv%d = flush((real)t_v);\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
         return;
     }
     switch (nl->kind == NL_CONTACT ? SOLVER_NEWTON : solver_of(x, nl)) {
@@ -289,7 +289,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     case SOLVER_OMEGA:
         emit(o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
              nl->pair, tol, it);
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
+        emit(o, "            s_nv%d = flush((real)t_v);\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
         break;
     default:
         if (nl->kind == NL_CONTACT) {
@@ -300,7 +300,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
             emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
                  k, k, k, k, nl->pair, k, tol, it);
         }
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
+        emit(o, "            s_nv%d = flush((real)t_v);\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
         break;
     }
     emit(o, "        }\n");
@@ -350,10 +350,10 @@ static void emit_backward(Ctx *x, Buf *o) {
             x->bpost[i] = b;
             if (e->kind == E_C || e->kind == E_L) {
                 int r = x->react[i];
-                emit(o, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
+                emit(o, "        s_b%d = %s;\n        s_a%d = flush(%s);\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
             } else if (e->kind == E_W) {
-                emit(o, "        s_dl[%d + (t_pos & %du)] = %s; /* %s */\n", x->dl_off[n->elem],
+                emit(o, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
                      x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
             } else {
                 emit(o, "        (void)%s; /* %s */\n", a, e->name);
@@ -495,13 +495,6 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
         for (int k = 0; k < x->nline; k++)
             emit(o, "    const unsigned k_D%d = st->c_D[%d];\n", k, k);
         emit(wb, "    st->s_pos = t_pos;\n");
-        /* what the block wrote into the lines, flushed like the other states */
-        for (int i = 0; i < c->nelems; i++)
-            if (c->elems[i].kind == E_W)
-                emit(wb, "    for (int m = 1; m <= nframes && m <= %d; m++) {\n"
-                         "        real *t_w = &s_dl[%d + ((t_pos - (unsigned)m) & %du)];\n"
-                         "        *t_w = flush(*t_w);\n    }\n",
-                     x->dl_size[x->line_of[i]], x->dl_off[i], x->dl_size[x->line_of[i]] - 1);
     }
     emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
     for (int k = 0; k < x->nnl; k++) {
