@@ -278,7 +278,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
             emit(o, "            s_nX%d += (real)(0.5 * k_T * (t_v + s_nv%d));\n", k, k);
         else
             emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
-        emit(o, "            s_nv%d = flush((real)t_v);\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
         return;
     }
     switch (nl->kind == NL_CONTACT ? SOLVER_NEWTON : solver_of(x, nl)) {
@@ -289,7 +289,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     case SOLVER_OMEGA:
         emit(o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
              nl->pair, tol, it);
-        emit(o, "            s_nv%d = flush((real)t_v);\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
         break;
     default:
         if (nl->kind == NL_CONTACT) {
@@ -300,7 +300,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
             emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
                  k, k, k, k, nl->pair, k, tol, it);
         }
-        emit(o, "            s_nv%d = flush((real)t_v);\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
         break;
     }
     emit(o, "        }\n");
@@ -350,7 +350,7 @@ static void emit_backward(Ctx *x, Buf *o) {
             x->bpost[i] = b;
             if (e->kind == E_C || e->kind == E_L) {
                 int r = x->react[i];
-                emit(o, "        s_b%d = %s;\n        s_a%d = flush(%s);\n", r, b, r, a);
+                emit(o, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
             } else if (e->kind == E_W) {
                 emit(o, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
@@ -485,7 +485,7 @@ static void emit_work(Ctx *x, Buf *o) {
 
 /* ---- hoisting and write-back ---- */
 
-static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
+static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
     const Circuit *c = x->c;
     emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
     emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
@@ -503,7 +503,8 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
         for (int j = 0; j < 4; j++)
             emit(o, "    const double c_nl%d_%d = st->c_nl[%d];\n    (void)c_nl%d_%d;\n", k, j, 4 * k + j, k, j);
         emit(o, "    real s_nX%d = st->s_nX[%d], s_nv%d = st->s_nv[%d];\n", k, k, k, k);
-        emit(wb, "    st->s_nX[%d] = flush(s_nX%d);\n    st->s_nv[%d] = flush(s_nv%d);\n", k, k, k, k);
+        emit(wb, "    st->s_nX[%d] = s_nX%d;\n    st->s_nv[%d] = s_nv%d;\n", k, k, k, k);
+        emit(fl, "        s_nX%d = flush(s_nX%d);\n        s_nv%d = flush(s_nv%d);\n", k, k, k, k);
         if (x->pwl_n[k])
             emit(o, "    const real *const c_pa%d = st->c_pa + %d, *const c_pb%d = st->c_pb + %d, "
                     "*const c_ps%d = st->c_ps + %d;\n", k, x->pwl_off[k], k, x->pwl_off[k], k, x->pwl_off[k]);
@@ -528,13 +529,15 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb) {
             emit(o, "    const real c_e%d = st->c_e[%d];\n    (void)c_e%d;\n", x->src[i], x->src[i], x->src[i]);
     for (int r2 = 0; r2 < x->nreact; r2++) {
         emit(o, "    real s_a%d = st->s_a[%d], s_b%d = st->s_b[%d];\n", r2, r2, r2, r2);
-        emit(wb, "    st->s_a[%d] = flush(s_a%d);\n    st->s_b[%d] = flush(s_b%d);\n", r2, r2, r2, r2);
+        emit(wb, "    st->s_a[%d] = s_a%d;\n    st->s_b[%d] = s_b%d;\n", r2, r2, r2, r2);
+        emit(fl, "        s_a%d = flush(s_a%d);\n        s_b%d = flush(s_b%d);\n", r2, r2, r2, r2);
     }
     int xp = 0;
     for (int k = 0; k < c->nouts; k++)
         if (c->outs[k].kind == PR_X) {
             emit(o, "    double s_x%d = st->s_x[%d];\n    real s_xv%d = st->s_xv[%d];\n", xp, xp, xp, xp);
-            emit(wb, "    st->s_x[%d] = s_x%d;\n    st->s_xv[%d] = flush(s_xv%d);\n", xp, xp, xp, xp);
+            emit(wb, "    st->s_x[%d] = s_x%d;\n    st->s_xv[%d] = s_xv%d;\n", xp, xp, xp, xp);
+            emit(fl, "        s_xv%d = flush(s_xv%d);\n", xp, xp);
             xp++;
         }
     for (int s = 0; s < x->nsrc; s++) {
@@ -1017,7 +1020,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     Ctx x = {.w = w, .c = w->c, .single = opt->single, .opt = opt};
     const Circuit *c = w->c;
     index_tree(&x);
-    Buf update = {0}, sample = {0}, hoist = {0}, wb = {0}, reset = {0}, probes = {0}, energy = {0},
+    Buf update = {0}, sample = {0}, hoist = {0}, wb = {0}, flushes = {0}, reset = {0}, probes = {0}, energy = {0},
         kirch = {0}, targets = {0}, cases = {0};
     emit_update(&x, &update);
     for (int i = 0; i < c->ninputs; i++)
@@ -1030,7 +1033,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     emit_work(&x, &sample);
     if (x.nline)
         emit(&sample, "        t_pos++;\n");
-    emit_hoist(&x, &hoist, &wb);
+    emit_hoist(&x, &hoist, &wb, &flushes);
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);
     emit_ic_cases(&x, &targets, &cases);
@@ -1071,7 +1074,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         {"writeback", str(&wb)}, {"precision", opt->single ? "32" : "64"},
         {"n_inputs", format("%d", c->ninputs)}, {"n_outputs", format("%d", c->nouts)},
         {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"nl_retune", str(&retune)},
-        {"nl_force", str(&force)},
+        {"nl_force", str(&force)}, {"flush", str(&flushes)},
+        {"flush_below", opt->single ? "1e-18f" : "1e-30"},
     };
     int nh = (int)(sizeof holes / sizeof holes[0]);
     const char *ctext = fill(tmpl_voice_c, holes, nh);
