@@ -8,9 +8,10 @@
  *   elab.c   lines -> Circuit: one flat graph of primitive elements in SI
  *            units (mechanical elements mapped by the mobility analogy),
  *            params, inputs, probes, initial conditions
- *   wdf.c    Circuit -> Wdf: the adaptor tree (series/parallel adaptors
- *            found by series-parallel reduction, the irreducible rest and
- *            every ideal source gathered into one rigid root adaptor)
+ *   wdf.c    Circuit -> Wdf: an adaptor forest, one root per biconnected
+ *            block (series/parallel adaptors found by series-parallel
+ *            reduction; the irreducible rest, ideal sources and the
+ *            block's nonlinear element gathered into a rigid root)
  *   scatter.c  scattering matrices (LAPACKE) and the losslessness check
  *   emit.c   Wdf -> C text of the voice, through templates/
  *

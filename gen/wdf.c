@@ -1,15 +1,19 @@
-/* wdf.c: Circuit -> adaptor tree.
+/* wdf.c: Circuit -> adaptor forest.
  *
- * Every adaptable element (R, C, L, resistive sources) is a leaf whose port
- * resistance makes it reflection-free or gives it a one-sample memory
- * (bilinear transform: C -> T/(2C), L -> 2L/T).  Series-parallel reduction
- * of the element graph then builds adapted series and parallel adaptors
+ * Every adaptable element (R, C, L, resistive sources, a line's end) is a
+ * leaf whose port resistance makes it reflection-free or gives it a
+ * one-sample memory (bilinear transform: C -> T/(2C), L -> 2L/T).  The
+ * element graph splits into biconnected blocks: blocks that share one
+ * node, or meet only through a line's delay, exchange no instantaneous
+ * current, and each gets a root of its own.  Inside a block,
+ * series-parallel reduction builds adapted series and parallel adaptors
  * bottom-up: two edges between the same nodes merge in parallel, a node
  * with exactly two edges merges them in series; chains of the same kind
- * flatten into one n-port adaptor.  Ideal sources cannot be adapted and are
- * never merged.  What cannot be reduced further (bridges, non-series-parallel
- * frames, and every ideal source) is the core: one rigid root adaptor whose
- * matrix is solved from the core's nodal equations (scatter.c). */
+ * flatten into one n-port adaptor.  Ideal sources and the nonlinear element
+ * cannot be adapted and are never merged.  What cannot be reduced further
+ * (bridges, non-series-parallel frames, ideal sources, the nonlinearity)
+ * is the block's core: one rigid root adaptor whose matrix is solved from
+ * the core's nodal equations (scatter.c). */
 #include <math.h>
 #include <string.h>
 
