@@ -62,18 +62,19 @@ test: deps
 run-tests: all $(TEST_BINS)
 	sh tests/run.sh $(TEST_BINS)
 
-bench: all build/bench/bench build/bench/nlbench
+bench: deps
+	$(MAKE) all build/bench/bench build/bench/nlbench
 	build/bench/bench $(NETLISTS)
 	build/bench/nlbench $(NETLISTS)
 
-build/bench/bench: build/bench/bench.o build/libwdc.a build/libwdrt.a
-	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
-build/bench/nlbench: build/bench/nlbench.o build/tests/refsim.o build/libwdc.a build/libwdrt.a
-	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 format:
-	clang-format -i gen/*.c gen/*.h runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c
+	clang-format -i gen/*.c gen/*.h runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c bench/*.h
 
 clean:
 	rm -rf build bin out

@@ -52,16 +52,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <dirent.h>
 #include <sys/mman.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
+#include "benchlib.h"
 #include "gen.h"
 #include "wdrt_host.h"
 #include "wdvoice.h"
 #include "../tests/refsim.h"
+#include "../tests/testlib.h"
 
 #define BLOCK 64
 #define RUNS 3
@@ -99,106 +99,6 @@ static const SolverCase curve_cases[] = {
 static const SolverCase contact_cases[] = {
     {"newton", {"--solver", "newton", NULL}},
 };
-
-static double now(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-/* ---- set-up helpers (not timed) ---- */
-
-static int run_command(char *const argv[]) {
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        execvp(argv[0], argv);
-        fprintf(stderr, "nlbench: cannot run %s: %s\n", argv[0], strerror(errno));
-        _exit(127);
-    }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR)
-            return -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-/* The name of the one voice source (NAME.c) in dir. */
-static int find_voice(const char *dir, char *name, size_t cap) {
-    DIR *d = opendir(dir);
-    if (!d)
-        return -1;
-    int found = 0;
-    struct dirent *de;
-    while ((de = readdir(d)) != NULL) {
-        size_t len = strlen(de->d_name);
-        if (len > 2 && !strcmp(de->d_name + len - 2, ".c") && len - 2 < cap) {
-            memcpy(name, de->d_name, len - 2);
-            name[len - 2] = '\0';
-            found++;
-        }
-    }
-    closedir(d);
-    return found == 1 ? 0 : -1;
-}
-
-static void remove_dir(const char *dir) {
-    DIR *d = opendir(dir);
-    if (!d)
-        return;
-    struct dirent *de;
-    char path[1024];
-    while ((de = readdir(d)) != NULL) {
-        if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
-            continue;
-        snprintf(path, sizeof path, "%s/%s", dir, de->d_name);
-        unlink(path);
-    }
-    closedir(d);
-    rmdir(dir);
-}
-
-/* First line of `cmd`'s output, or "?" */
-static void first_line(const char *cmd, char *buf, size_t cap) {
-    snprintf(buf, cap, "?");
-    FILE *p = popen(cmd, "r");
-    if (!p)
-        return;
-    if (fgets(buf, (int)cap, p))
-        buf[strcspn(buf, "\n")] = '\0';
-    else
-        snprintf(buf, cap, "?");
-    pclose(p);
-}
-
-static void cpu_model(char *buf, size_t cap) {
-    snprintf(buf, cap, "?");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        if (!strncmp(line, "model name", 10)) {
-            char *c = strchr(line, ':');
-            if (c) {
-                c++;
-                while (*c == ' ' || *c == '\t')
-                    c++;
-                c[strcspn(c, "\n")] = '\0';
-                snprintf(buf, cap, "%s", c);
-            }
-            break;
-        }
-    }
-    fclose(f);
-}
-
-static const char *basename_of(const char *path) {
-    const char *s = strrchr(path, '/');
-    return s ? s + 1 : path;
-}
 
 static int is_word_char(char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
@@ -279,24 +179,22 @@ static NlKinds nl_kinds(const Circuit *c) {
 /* ---- voices ---- */
 
 typedef struct Built {
-    char dir[64];        /* temporary directory; "" if it could not be made */
-    int ok;              /* emitted and compiled */
-    wdrt_voice_lib lib;
-    const wdv_class *cls;
+    tl_voice v; /* v.dir: temporary directory; "" if it could not be made */
+    int ok;     /* emitted and compiled */
 } Built;
 
 /* Makes the voice's directory with the netlist's text written into it
  * without its solver= keys.  Returns 0, or -1 after printing what failed. */
 static int voice_dir(const char *text, Built *b) {
     memset(b, 0, sizeof *b);
-    snprintf(b->dir, sizeof b->dir, "/tmp/wdc-nlbench-XXXXXX");
-    if (!mkdtemp(b->dir)) {
+    snprintf(b->v.dir, sizeof b->v.dir, "/tmp/wdc-nlbench-XXXXXX");
+    if (!mkdtemp(b->v.dir)) {
         fprintf(stderr, "nlbench: mkdtemp: %s\n", strerror(errno));
-        b->dir[0] = '\0';
+        b->v.dir[0] = '\0';
         return -1;
     }
     char src[128];
-    snprintf(src, sizeof src, "%s/netlist.wdn", b->dir);
+    snprintf(src, sizeof src, "%s/netlist.wdn", b->v.dir);
     if (write_without_solver(text, src) < 0) {
         fprintf(stderr, "nlbench: cannot write %s\n", src);
         return -1;
@@ -305,75 +203,25 @@ static int voice_dir(const char *text, Built *b) {
 }
 
 /* Emits the voice in dir at rate fs with the solver's flags and compiles
- * it.  Returns 0, or -1 after printing what failed. */
-static int voice_make(const char *wdc, const char *netlist, const char *dir, const SolverCase *sc,
-                      double fs) {
-    char src[128], rate[32], name[256], csrc[512], so[512];
+ * it (tl_voice_make; $WDC overrides bin/wdc).  Returns 0, or -1 after
+ * printing what failed. */
+static int voice_make(const char *netlist, const char *dir, const SolverCase *sc, double fs) {
+    char src[128], rate[32];
     snprintf(src, sizeof src, "%s/netlist.wdn", dir);
     snprintf(rate, sizeof rate, "%.0f", fs);
-    char *argv[16];
+    const char *args[8];
     int n = 0;
-    argv[n++] = (char *)wdc;
-    argv[n++] = src;
-    argv[n++] = "-o";
-    argv[n++] = (char *)dir;
-    argv[n++] = "--rate";
-    argv[n++] = rate;
-    for (int k = 0; sc->args[k] && n < 15; k++)
-        argv[n++] = (char *)sc->args[k];
-    argv[n] = NULL;
-    int st = run_command(argv);
-    if (st != 0) {
-        fprintf(stderr, "nlbench: %s (%s) --rate %s, solver %s: exit status %d\n", wdc, netlist, rate,
-                sc->label, st);
-        return -1;
-    }
-    if (find_voice(dir, name, sizeof name) != 0) {
-        fprintf(stderr, "nlbench: %s: expected one voice source in %s\n", netlist, dir);
-        return -1;
-    }
-    snprintf(csrc, sizeof csrc, "%s/%s.c", dir, name);
-    snprintf(so, sizeof so, "%s/%s.so", dir, name);
-    wdrt_result r = wdrt_voice_compile(csrc, so, NULL, CFLAGS);
-    if (r != WDRT_OK) {
-        fprintf(stderr, "nlbench: compiling %s: %s\n", csrc, wdrt_result_str(r));
+    args[n++] = "--rate";
+    args[n++] = rate;
+    for (int k = 0; sc->args[k] && n < 7; k++)
+        args[n++] = sc->args[k];
+    args[n] = NULL;
+    if (tl_voice_make(src, dir, args, CFLAGS) != 0) {
+        fprintf(stderr, "nlbench: %s --rate %s, solver %s: the voice could not be built\n", netlist,
+                rate, sc->label);
         return -1;
     }
     return 0;
-}
-
-/* Loads the voice voice_make compiled.  Returns 0, or -1. */
-static int voice_load(Built *b) {
-    char name[256], so[512];
-    if (find_voice(b->dir, name, sizeof name) != 0)
-        return -1;
-    snprintf(so, sizeof so, "%s/%s.so", b->dir, name);
-    wdrt_result r = wdrt_voice_open(so, name, &b->lib);
-    if (r != WDRT_OK) {
-        fprintf(stderr, "nlbench: loading %s: %s\n", so, wdrt_result_str(r));
-        return -1;
-    }
-    b->cls = b->lib.cls;
-    return 0;
-}
-
-static void voice_free(Built *b) {
-    if (b->lib.handle)
-        wdrt_voice_close(&b->lib);
-    const char *keep = getenv("WDC_KEEP");
-    if (b->dir[0] && !(keep && *keep == '1'))
-        remove_dir(b->dir);
-    memset(b, 0, sizeof *b);
-}
-
-static void *state_new(const wdv_class *cls, double fs) {
-    size_t size = (cls->state_size + 63) / 64 * 64;
-    void *st = NULL;
-    if (posix_memalign(&st, 64, size ? size : 64) != 0)
-        return NULL;
-    memset(st, 0, size ? size : 64);
-    cls->init(st, fs);
-    return st;
 }
 
 /* ---- speed ---- */
@@ -388,7 +236,8 @@ typedef struct Timed {
     double *out[MAXIO];
 } Timed;
 
-static void render_blocks(Timed *v, long nblocks) {
+static void render_blocks(void *ctx, long nblocks) {
+    Timed *v = ctx;
     const wdv_class *cls = v->cls;
     for (long b = 0; b < nblocks; b++) {
         if (v->drive) {
@@ -404,60 +253,7 @@ static void render_blocks(Timed *v, long nblocks) {
     }
 }
 
-/* Best ns per sample over RUNS runs of at least `seconds` each. */
-static double measure(Timed *v, double seconds) {
-    long done = 0;
-    double t0 = now(), t;
-    do {
-        render_blocks(v, 16);
-        done += 16;
-        t = now();
-    } while (t - t0 < WARMUP_S);
-    /* about 5 ms of work between clock reads */
-    long batch = (long)((double)done / (t - t0) * 0.005);
-    if (batch < 1)
-        batch = 1;
-    double best = INFINITY;
-    for (int run = 0; run < RUNS; run++) {
-        long blocks = 0;
-        double start = now(), el;
-        do {
-            render_blocks(v, batch);
-            blocks += batch;
-            el = now() - start;
-        } while (el < seconds);
-        double ns = el * 1e9 / ((double)blocks * BLOCK);
-        if (ns < best)
-            best = ns;
-    }
-    return best;
-}
-
 /* ---- accuracy ---- */
-
-static double **bufs_new(int n, long len) {
-    double **b = calloc((size_t)n + 1, sizeof *b);
-    if (!b)
-        return NULL;
-    for (int k = 0; k < n; k++) {
-        b[k] = calloc((size_t)len + 1, sizeof(double));
-        if (!b[k]) {
-            for (int j = 0; j < k; j++)
-                free(b[j]);
-            free(b);
-            return NULL;
-        }
-    }
-    return b;
-}
-
-static void bufs_free(double **b, int n) {
-    if (!b)
-        return;
-    for (int k = 0; k < n; k++)
-        free(b[k]);
-    free(b);
-}
 
 /* sqrt(sum (a-b)^2 / sum b^2); the RMS of a if b is all zero. */
 static double rel_rms(const double *a, const double *b, long n) {
@@ -475,7 +271,7 @@ static double rel_rms(const double *a, const double *b, long n) {
 /* Renders nframes of a fresh instance at fs, every input driven by `in`
  * (NULL: no inputs).  Returns 0, or -1 if a sample is not finite. */
 static int render_voice(const wdv_class *cls, double fs, const double *in, long nframes, double **out) {
-    void *st = state_new(cls, fs);
+    void *st = tl_state_new(cls, fs);
     if (!st)
         return -1;
     const double *ip[MAXIO];
@@ -488,7 +284,7 @@ static int render_voice(const wdv_class *cls, double fs, const double *in, long 
             op[k] = out[k] + pos;
         cls->process(st, ip, op, n);
     }
-    free(st);
+    tl_state_free(st);
     for (int k = 0; k < cls->n_outputs; k++)
         for (long n = 0; n < nframes; n++)
             if (!isfinite(out[k][n]))
@@ -534,7 +330,7 @@ static int render_ref(const Circuit *c, double fs, int fine, double amp, long nf
  * every rate and solver, and the reference runs, in memory shared with
  * the processes that compute them. */
 typedef struct Prep {
-    const char *wdc, *path;
+    const char *path;
     const Circuit *c;
     const SolverCase *cases;
     int ncases, ndrives, have_ref;
@@ -566,7 +362,7 @@ static int do_job(Prep *p, const Job *j) {
         p->ref_ok[sl] = 1;
         return 0;
     }
-    return voice_make(p->wdc, p->path, p->built[j->r][j->s].dir, &p->cases[j->s], rates[j->r]) == 0 ? 0 : 1;
+    return voice_make(p->path, p->built[j->r][j->s].v.dir, &p->cases[j->s], rates[j->r]) == 0 ? 0 : 1;
 }
 
 /* Runs the jobs, as many at a time as there are processors; *status[k]
@@ -664,7 +460,7 @@ static int prepare(Prep *p, const char *text) {
 static void prep_free(Prep *p) {
     for (int r = 0; r < NRATES; r++)
         for (int s = 0; s < p->ncases; s++)
-            voice_free(&p->built[r][s]);
+            tl_voice_free(&p->built[r][s].v);
     if (p->shared)
         munmap(p->shared, p->shared_size);
     p->shared = NULL;
@@ -711,13 +507,6 @@ static double worst(double **y, double *const *r, int nouts, long n, int *which)
     return w;
 }
 
-static void label_of(const char *path, char *label, size_t cap) {
-    snprintf(label, cap, "%s", basename_of(path));
-    char *dot = strrchr(label, '.');
-    if (dot && !strcmp(dot, ".wdn"))
-        *dot = '\0';
-}
-
 /* Measures one voice: its speed, then its accuracy on every drive, and
  * prints its rows.  Returns 0, or 1 if it failed. */
 static int measure_voice(Prep *p, const char *label, int r, int s, double seconds) {
@@ -725,11 +514,11 @@ static int measure_voice(Prep *p, const char *label, int r, int s, double second
     const SolverCase *sc = &p->cases[s];
     double fs = rates[r];
     Built *b = &p->built[r][s];
-    if (!b->ok || voice_load(b) != 0) {
+    if (!b->ok || tl_voice_load(&b->v) != 0) {
         print_row(label, sc->label, fs, "-", "failed", "-", "-");
         return 1;
     }
-    const wdv_class *cls = b->cls;
+    const wdv_class *cls = b->v.cls;
     if (cls->n_inputs != c->ninputs || cls->n_outputs != c->nouts) {
         fprintf(stderr, "nlbench: %s: the voice's ports differ from the netlist's\n", p->path);
         print_row(label, sc->label, fs, "-", "failed", "-", "-");
@@ -743,7 +532,7 @@ static int measure_voice(Prep *p, const char *label, int r, int s, double second
         len = BLOCK;
     long dl = len > N ? len : N;
     double *drive[NAMPS] = {NULL};
-    double **y = bufs_new(c->nouts, N);
+    double **y = tl_bufs_new(c->nouts, N);
     int failed = 0, finite = 1;
     if (!y)
         goto oom;
@@ -759,19 +548,19 @@ static int measure_voice(Prep *p, const char *label, int r, int s, double second
     /* speed, on the last drive */
     Timed tv = {0};
     tv.cls = cls;
-    tv.st = state_new(cls, fs);
+    tv.st = tl_state_new(cls, fs);
     tv.drive = c->ninputs ? drive[p->ndrives - 1] : NULL;
     tv.len = len;
     for (int k = 0; k < c->nouts; k++)
         tv.out[k] = y[k];
     if (!tv.st)
         goto oom;
-    double ns = measure(&tv, seconds);
+    double ns = bench_measure(render_blocks, &tv, BLOCK, RUNS, WARMUP_S, seconds);
     for (int k = 0; k < c->nouts; k++)
         for (int n = 0; n < BLOCK; n++)
             if (!isfinite(y[k][n]))
                 finite = 0;
-    free(tv.st);
+    tl_state_free(tv.st);
 
     /* accuracy, on every drive, the timed one first */
     for (int d = p->ndrives - 1; d >= 0; d--) {
@@ -811,12 +600,12 @@ oom:
 out:
     for (int d = 0; d < NAMPS; d++)
         free(drive[d]);
-    bufs_free(y, c->nouts);
+    tl_bufs_free(y, c->nouts);
     return failed;
 }
 
 /* Benchmarks one netlist; returns 0, or 1 if a voice failed. */
-static int bench_netlist(const char *wdc, const char *path, double seconds) {
+static int bench_netlist(const char *path, double seconds) {
     Circuit *c = wdc_load(path);
     if (!c) {
         fprintf(stderr, "nlbench: %s: cannot load\n", path);
@@ -826,7 +615,7 @@ static int bench_netlist(const char *wdc, const char *path, double seconds) {
     if (kinds.diodes + kinds.curves + kinds.contacts == 0)
         return 0;
     char label[64];
-    label_of(path, label, sizeof label);
+    bench_label(path, label, sizeof label);
     if (c->ninputs > MAXIO || c->nouts > MAXIO || c->nouts < 1) {
         add_note("%s: %s", label, "no outputs, or more than 16 inputs or outputs: not measured");
         return 0;
@@ -843,7 +632,6 @@ static int bench_netlist(const char *wdc, const char *path, double seconds) {
 
     static Prep p;
     memset(&p, 0, sizeof p);
-    p.wdc = wdc;
     p.path = path;
     p.c = c;
     if (kinds.diodes) {
@@ -899,27 +687,15 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: nlbench [-t SECONDS] NETLIST.wdn...\n");
         return 2;
     }
-    const char *wdc = getenv("WDC");
-    if (!wdc || !*wdc)
-        wdc = "bin/wdc";
-    const char *cc = getenv("CC");
-    if (!cc || !*cc)
-        cc = "cc";
-    char version[256], cpu[256], cmd[512];
-    snprintf(cmd, sizeof cmd, "%s --version 2>/dev/null", cc);
-    first_line(cmd, version, sizeof version);
-    cpu_model(cpu, sizeof cpu);
     for (int i = first; i < argc; i++) {
         char label[64];
-        label_of(argv[i], label, sizeof label);
+        bench_label(argv[i], label, sizeof label);
         if ((int)strlen(label) > name_width)
             name_width = (int)strlen(label);
     }
 
     printf("wdc nonlinear benchmark: speed against accuracy of the voices with nonlinear elements\n");
-    printf("compiler: %s (%s)\n", cc, version);
-    printf("flags:    -std=c99 -shared -fPIC %s ... -lm\n", CFLAGS);
-    printf("cpu:      %s\n\n", cpu);
+    bench_print_setup(CFLAGS);
     printf("ns/sample: one voice, blocks of %d frames, best of %d runs of >= %.2g s after a %.2g s warm-up,\n"
            "  driven by a %.0f Hz sine of amplitude %g (V, or the input's unit) on every input; a voice\n"
            "  without inputs is reset (its .ic strike) every %.0f ms.\n",
@@ -947,7 +723,7 @@ int main(int argc, char **argv) {
 
     int failed = 0;
     for (int i = first; i < argc; i++)
-        failed |= bench_netlist(wdc, argv[i], seconds);
+        failed |= bench_netlist(argv[i], seconds);
     if (nnotes) {
         printf("\n");
         for (int k = 0; k < nnotes; k++)

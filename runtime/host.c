@@ -2,8 +2,8 @@
  * host.c - compiling, loading and rendering emitted voices.
  *
  * Implements runtime/wdrt_host.h except the WAV functions (sndio.c).
- * None of this is real-time safe: it forks the C compiler, opens shared
- * objects and allocates.
+ * None of this is real-time safe: it forks programs (the C compiler among
+ * them), opens shared objects and allocates.
  */
 #include "wdrt_host.h"
 
@@ -29,6 +29,37 @@ const char *wdrt_result_str(wdrt_result r)
     case WDRT_FORMAT: return "file is not in a readable format";
     }
     return "unknown result";
+}
+
+wdrt_result wdrt_spawn(char *const argv[], int out_fd, int *status)
+{
+    if (!argv || !argv[0] || !*argv[0])
+        return WDRT_INVALID_ARGS;
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid < 0)
+        return WDRT_ERROR;
+    if (pid == 0) {
+        if (out_fd >= 0) {
+            dup2(out_fd, STDOUT_FILENO);
+            dup2(out_fd, STDERR_FILENO);
+            if (out_fd > STDERR_FILENO)
+                close(out_fd);
+        }
+        execvp(argv[0], argv);
+        fprintf(stderr, "wdrt: cannot run %s: %s\n", argv[0],
+                strerror(errno));
+        _exit(127);
+    }
+    int st = 0;
+    while (waitpid(pid, &st, 0) < 0)
+        if (errno != EINTR)
+            return WDRT_ERROR;
+    if (status)
+        *status = WIFSIGNALED(st) ? 128 + WTERMSIG(st)
+                  : WIFEXITED(st) ? WEXITSTATUS(st)
+                                  : -1;
+    return WDRT_OK;
 }
 
 /* Appends the space-separated words of `s` (a writable copy) to argv. */
@@ -108,29 +139,10 @@ wdrt_result wdrt_voice_compile(const char *csrc, const char *so,
     argv[n++] = a_lm;
     argv[n] = NULL;
 
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid < 0) {
-        res = WDRT_TOOLCHAIN;
-        goto done;
-    }
-    if (pid == 0) {
-        /* The compiler's messages go to our stderr; keep stdout clean
-         * for callers that write data there. */
-        dup2(STDERR_FILENO, STDOUT_FILENO);
-        execvp(argv[0], argv);
-        fprintf(stderr, "wdrt: cannot run %s: %s\n", argv[0],
-                strerror(errno));
-        _exit(127);
-    }
+    /* The compiler's messages go to our stderr; keep stdout clean for
+     * callers that write data there. */
     int status = 0;
-    while (waitpid(pid, &status, 0) < 0) {
-        if (errno != EINTR) {
-            res = WDRT_TOOLCHAIN;
-            goto done;
-        }
-    }
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    if (wdrt_spawn(argv, STDERR_FILENO, &status) != WDRT_OK || status != 0)
         res = WDRT_TOOLCHAIN;
 
 done:

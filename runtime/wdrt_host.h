@@ -30,6 +30,18 @@ typedef struct wdrt_voice_lib {
     const wdv_class *cls;    /* NAME_class in the object */
 } wdrt_voice_lib;
 
+/* Runs the program argv[0] (looked up in PATH unless the name has a
+ * slash) with the NULL-terminated argument list argv, and waits for it to
+ * end.  With out_fd < 0 the program writes to our stdout and stderr;
+ * otherwise both its stdout and its stderr go to the file descriptor
+ * out_fd (STDERR_FILENO: everything to our stderr).  *status (if not NULL)
+ * gets its exit status, 128 + N if signal N ended it, or 127 if it could
+ * not be started (with a message on its stderr).  Returns WDRT_OK once the
+ * program has been waited for, whatever its status; WDRT_INVALID_ARGS, or
+ * WDRT_ERROR if fork or waitpid failed.  Flushes all stdio streams first.
+ * Forks and blocks until the program ends: not real-time safe. */
+wdrt_result wdrt_spawn(char *const argv[], int out_fd, int *status);
+
 /* Compiles the C file `csrc` into the shared object `so` with the compiler
  * `cc` (NULL: $CC, or "cc") and extra flags `cflags` (NULL: "-O2").  The
  * compiler's messages go to stderr.  Allocates; not real-time safe. */

@@ -46,7 +46,6 @@
 #define RLC_NETLIST "netlists/rlc_series.wdn"
 #define DEFAULT_FS 48000.0
 #define DECAY_FLOOR 1e-15
-#define BLOCK 4800L
 #define MAX_SECONDS 60
 
 /* ---- helpers ---- */
@@ -62,11 +61,10 @@ static const Elem *find_elem(const Circuit *c, const char *name)
 
 static int output_id(const wdv_class *cls, const char *name)
 {
-    for (int k = 0; k < cls->n_outputs; k++)
-        if (strcmp(cls->outputs[k].name, name) == 0)
-            return k;
-    fail_msg("voice %s has no output %s", cls->name, name);
-    return -1;
+    int k = tl_output_id(cls, name);
+    if (k < 0)
+        fail_msg("voice %s has no output %s", cls->name, name);
+    return k;
 }
 
 /* Renders nframes of output `oid` for input `x` (the voice's only input;
@@ -89,69 +87,6 @@ static int render_one(const wdv_class *cls, void *state, const double *x,
     free(out);
     free(scratch);
     return 0;
-}
-
-/* Response of output `oid` to a unit impulse at sample 0, rendered until a
- * whole block stays below DECAY_FLOOR (malloc'ed; length in *n), or NULL
- * if it is not finite or does not decay within MAX_SECONDS. */
-static double *impulse_response(const wdv_class *cls, void *state, int oid,
-                                double fs, long *n)
-{
-    long cap = 8 * BLOCK, len = 0;
-    double *h = malloc((size_t)cap * sizeof *h);
-    double *imp = calloc((size_t)BLOCK, sizeof *imp);
-    if (!h || !imp)
-        goto fail;
-    imp[0] = 1.0;
-    for (;;) {
-        if (len + BLOCK > cap) {
-            cap *= 2;
-            double *p = realloc(h, (size_t)cap * sizeof *h);
-            if (!p)
-                goto fail;
-            h = p;
-        }
-        if (render_one(cls, state, len == 0 ? imp : NULL, oid, h + len,
-                       BLOCK) != 0)
-            goto fail;
-        double peak = 0;
-        for (long i = len; i < len + BLOCK; i++) {
-            if (!isfinite(h[i]))
-                goto fail;
-            if (fabs(h[i]) > peak)
-                peak = fabs(h[i]);
-        }
-        len += BLOCK;
-        if (len > BLOCK && peak < DECAY_FLOOR)
-            break;
-        if (len >= (long)(MAX_SECONDS * fs))
-            goto fail;
-    }
-    free(imp);
-    *n = len;
-    return h;
-fail:
-    free(h);
-    free(imp);
-    return NULL;
-}
-
-/* sum_n h[n] e^{-j w n}, the phasor recomputed exactly every 256 samples. */
-static double complex dtft(const double *h, long n, double w)
-{
-    double complex acc = 0;
-    const double complex step = cexp(-I * w);
-    for (long k0 = 0; k0 < n; k0 += 256) {
-        long k1 = k0 + 256 < n ? k0 + 256 : n;
-        double complex z = cexp(-I * (w * (double)k0));
-        double complex part = 0;
-        for (long k = k0; k < k1; k++) {
-            part += h[k] * z;
-            z *= step;
-        }
-        acc += part;
-    }
-    return acc;
 }
 
 static double rate_of(const Circuit *c)
@@ -289,7 +224,8 @@ static void test_rlc_response(void **st)
     void *state = tl_state_new(v.cls, fs);
     assert_non_null(state);
     long n = 0;
-    double *h = impulse_response(v.cls, state, oid, fs, &n);
+    double *h = tl_impulse_response(v.cls, state, oid, 64, DECAY_FLOOR,
+                                    (long)(MAX_SECONDS * fs), &n);
     tl_state_free(state);
     if (!h)
         fail_msg("RLC: the impulse response is not finite or does not "
@@ -300,7 +236,7 @@ static void test_rlc_response(void **st)
     for (int i = 0; i < 50; i++) {
         double f = 20.0 * pow(1000.0, i / 49.0);
         double w = 2.0 * M_PI * f / fs;
-        double complex hd = dtft(h, n, w);
+        double complex hd = tl_dtft(h, n, w);
         double complex ha = rlc_h(&k, I * (2.0 / T) * tan(w / 2.0));
         double err = cabs(hd - ha);
         if (!(err <= 1e-9)) {
@@ -335,7 +271,7 @@ static void test_rlc_response(void **st)
         double f = lo + (double)j * df;
         if (f > hi)
             break;
-        double m = cabs(dtft(h, n, 2.0 * M_PI * f / fs));
+        double m = cabs(tl_dtft(h, n, 2.0 * M_PI * f / fs));
         if (m > best) {
             best = m;
             fbest = f;
@@ -346,8 +282,8 @@ static void test_rlc_response(void **st)
     const double gr = (sqrt(5.0) - 1.0) / 2.0;
     for (int it = 0; it < 60; it++) {
         double x1 = gb - gr * (gb - ga), x2 = ga + gr * (gb - ga);
-        double m1 = cabs(dtft(h, n, 2.0 * M_PI * x1 / fs));
-        double m2 = cabs(dtft(h, n, 2.0 * M_PI * x2 / fs));
+        double m1 = cabs(tl_dtft(h, n, 2.0 * M_PI * x1 / fs));
+        double m2 = cabs(tl_dtft(h, n, 2.0 * M_PI * x2 / fs));
         if (m1 > m2)
             gb = x2;
         else

@@ -84,54 +84,50 @@ static const double min_ratio_48_192[NAMP] = {12.0, 7.0};
 #define MIN_RATIO_192_384 3.5
 #define NRATES 3
 
-typedef struct fixture {
-    double ref[NAMP][NREF];
-    tl_voice voice;
-    int built;
-} fixture;
+/* The data: v(out) at t = m/48000 for each amplitude. */
+typedef struct refdata {
+    double v[NAMP][NREF];
+} refdata;
 
-static int load_csv(const char *path, fixture *fx)
+typedef struct reading {
+    refdata *ref;
+    int count[NAMP];
+} reading;
+
+static int read_row(const char *line, const char *path, int lineno, void *ctx)
 {
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        fprintf(stderr, "test_diode_spice: cannot open %s (run from the "
-                        "repository root; regenerate with "
-                        "sh tests/ref/diode_clipper_ngspice.sh)\n", path);
+    reading *rd = ctx;
+    double a, t, v;
+    if (sscanf(line, "%lf,%lf,%lf", &a, &t, &v) != 3) {
+        fprintf(stderr, "%s:%d: malformed row\n", path, lineno);
         return -1;
     }
-    int count[NAMP] = {0, 0}, lineno = 0;
-    char line[256];
-    while (fgets(line, sizeof line, f)) {
-        lineno++;
-        if (lineno == 1 && strncmp(line, "amplitude", 9) == 0)
-            continue;
-        if (line[0] == '\n' || line[0] == '#')
-            continue;
-        double a, t, v;
-        if (sscanf(line, "%lf,%lf,%lf", &a, &t, &v) != 3) {
-            fprintf(stderr, "%s:%d: malformed row\n", path, lineno);
-            fclose(f);
-            return -1;
-        }
-        int k = -1;
-        for (int j = 0; j < NAMP; j++)
-            if (a == amps[j])
-                k = j;
-        long m = lround(t * FS_REF);
-        if (k < 0 || m < 0 || m >= NREF || fabs(t * FS_REF - (double)m) > 1e-9) {
-            fprintf(stderr, "%s:%d: unexpected amplitude or time\n", path,
-                    lineno);
-            fclose(f);
-            return -1;
-        }
-        fx->ref[k][m] = v;
-        count[k]++;
+    int k = -1;
+    for (int j = 0; j < NAMP; j++)
+        if (a == amps[j])
+            k = j;
+    long m = lround(t * FS_REF);
+    if (k < 0 || m < 0 || m >= NREF || fabs(t * FS_REF - (double)m) > 1e-9) {
+        fprintf(stderr, "%s:%d: unexpected amplitude or time\n", path,
+                lineno);
+        return -1;
     }
-    fclose(f);
+    rd->ref->v[k][m] = v;
+    rd->count[k]++;
+    return 0;
+}
+
+static int load_csv(void *data)
+{
+    const char *path = CSV_PATH;
+    reading rd = {data, {0, 0}};
+    if (tl_read_csv(path, "amplitude", "sh tests/ref/diode_clipper_ngspice.sh",
+                    read_row, &rd) != 0)
+        return -1;
     for (int k = 0; k < NAMP; k++)
-        if (count[k] != NREF) {
+        if (rd.count[k] != NREF) {
             fprintf(stderr, "%s: %d rows for A=%g, expected %d\n", path,
-                    count[k], amps[k], NREF);
+                    rd.count[k], amps[k], NREF);
             return -1;
         }
     return 0;
@@ -139,40 +135,7 @@ static int load_csv(const char *path, fixture *fx)
 
 static int setup(void **st)
 {
-    fixture *fx = calloc(1, sizeof *fx);
-    if (!fx)
-        return -1;
-    if (load_csv(CSV_PATH, fx) != 0) {
-        free(fx);
-        return -1;
-    }
-    if (tl_voice_build(NETLIST, 0, &fx->voice) != 0) {
-        tl_voice_free(&fx->voice);
-        free(fx);
-        return -1;
-    }
-    fx->built = 1;
-    *st = fx;
-    return 0;
-}
-
-static int teardown(void **st)
-{
-    fixture *fx = *st;
-    if (fx) {
-        if (fx->built)
-            tl_voice_free(&fx->voice);
-        free(fx);
-    }
-    return 0;
-}
-
-static int output_id(const wdv_class *cls, const char *name)
-{
-    for (int k = 0; k < cls->n_outputs; k++)
-        if (strcmp(cls->outputs[k].name, name) == 0)
-            return k;
-    return -1;
+    return tl_fixture_setup(st, NETLIST, sizeof(refdata), load_csv, NULL);
 }
 
 /* Runs the voice at fs = FS_REF * over on A sin(2 pi 440 n / fs) from
@@ -212,10 +175,11 @@ static int run_voice(const wdv_class *cls, int oid, double amp, int over,
 
 static void test_diode_clipper_vs_ngspice(void **st)
 {
-    fixture *fx = *st;
+    const tl_fixture *fx = *st;
+    const refdata *ref = fx->data;
     const wdv_class *cls = fx->voice.cls;
     assert_int_equal(cls->n_inputs, 1);
-    int oid = output_id(cls, "out");
+    int oid = tl_output_id(cls, "out");
     if (oid < 0)
         fail_msg("voice %s has no output `out`", cls->name);
 
@@ -227,18 +191,18 @@ static void test_diode_clipper_vs_ngspice(void **st)
             if (run_voice(cls, oid, amps[k], over[r], y) != 0)
                 fail_msg("A=%g V at %g Hz: the output is not finite or memory "
                          "ran out", amps[k], FS_REF * over[r]);
-            e[r] = rel_rms_error(y, fx->ref[k], NREF);
+            e[r] = rel_rms_error(y, ref->v[k], NREF);
             long worst = 0;
             for (long m = 0; m < NREF; m++)
-                if (fabs(y[m] - fx->ref[k][m]) >
-                    fabs(y[worst] - fx->ref[k][worst]))
+                if (fabs(y[m] - ref->v[k][m]) >
+                    fabs(y[worst] - ref->v[k][worst]))
                     worst = m;
             print_message("A=%4.1f V, fs=%6.0f Hz: relative RMS error %.4g "
                           "(%.1f dB); worst at t=%.4f ms: voice %.9f V, "
                           "ngspice %.9f V\n",
                           amps[k], FS_REF * over[r], e[r], tl_db(e[r]),
                           1e3 * (double)worst / FS_REF, y[worst],
-                          fx->ref[k][worst]);
+                          ref->v[k][worst]);
         }
         double r1 = e[0] / e[1], r2 = e[1] / e[2];
         print_message("A=%4.1f V: error ratio 48k/192k %.2f (second order: 16; "
@@ -266,5 +230,5 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_diode_clipper_vs_ngspice),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, setup, tl_fixture_teardown);
 }

@@ -38,14 +38,12 @@
 
 #include <cmocka.h>
 #include <ctype.h>
-#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "testlib.h"
@@ -56,27 +54,15 @@
 
 /* Runs argv (looked up in PATH) with stdout and stderr both going to the
  * file `log`; returns the exit status, 127 if it could not be started,
- * or -1. */
+ * 126 if the log cannot be written, or -1. */
 static int run_logged(char *const argv[], const char *log) {
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        if (fd < 0)
-            _exit(126);
-        dup2(fd, STDOUT_FILENO);
-        dup2(fd, STDERR_FILENO);
-        close(fd);
-        execvp(argv[0], argv);
-        _exit(127);
-    }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR)
-            return -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0)
+        return 126;
+    int status = -1;
+    wdrt_result r = wdrt_spawn(argv, fd, &status);
+    close(fd);
+    return r == WDRT_OK ? status : -1;
 }
 
 /* Whole contents of a file (malloc'ed, NUL-terminated), or NULL. */
@@ -123,42 +109,6 @@ static int on_path(const char *prog) {
         path += n + (colon != NULL);
     }
     return 0;
-}
-
-static void remove_dir(const char *dir) {
-    DIR *d = opendir(dir);
-    if (!d)
-        return;
-    struct dirent *de;
-    char path[1024];
-    while ((de = readdir(d)) != NULL) {
-        if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
-            continue;
-        snprintf(path, sizeof path, "%s/%s", dir, de->d_name);
-        unlink(path);
-    }
-    closedir(d);
-    rmdir(dir);
-}
-
-/* The one NAME.c in dir -> name; returns 0, or -1 if there is not
- * exactly one. */
-static int voice_name(const char *dir, char *name, size_t cap) {
-    DIR *d = opendir(dir);
-    if (!d)
-        return -1;
-    int found = 0;
-    struct dirent *de;
-    while ((de = readdir(d)) != NULL) {
-        size_t len = strlen(de->d_name);
-        if (len > 2 && !strcmp(de->d_name + len - 2, ".c") && len - 2 < cap) {
-            memcpy(name, de->d_name, len - 2);
-            name[len - 2] = '\0';
-            found++;
-        }
-    }
-    closedir(d);
-    return found == 1 ? 0 : -1;
 }
 
 /* ---- text checks ---- */
@@ -546,7 +496,7 @@ static void test_netlist(void **state) {
             x.problems++;
         } else {
             unlink(log);
-            if (voice_name(x.dir, x.name, sizeof x.name) != 0) {
+            if (tl_voice_name(x.dir, x.name, sizeof x.name) != 0) {
                 print_error("%s: expected exactly one NAME.c in %s\n", netlist, x.dir);
                 x.problems++;
             } else {
@@ -563,15 +513,10 @@ static void test_netlist(void **state) {
         if (keep && *keep == '1')
             print_message("kept %s\n", x.dir);
         else
-            remove_dir(x.dir);
+            tl_remove_dir(x.dir);
     }
     if (problems)
         fail_msg("%s: %d problem(s) in the emitted voice", netlist, problems);
-}
-
-static void test_netlists_present(void **state) {
-    int n = *(int *)*state;
-    assert_true(n > 0);
 }
 
 /* The checkers themselves reject what they are meant to reject. */
@@ -617,31 +562,8 @@ int main(void) {
     have_clang = on_path("clang");
     if (!have_clang)
         printf("test_emit: clang is not installed; compiling with gcc only\n");
-    int n = 0;
-    char **paths = tl_netlists(&n);
-    struct CMUnitTest *tests = calloc((size_t)n + 2, sizeof *tests);
-    char **names = calloc((size_t)n + 1, sizeof *names);
-    if (!tests || !names)
-        return 1;
-    tests[0].name = "netlists_present";
-    tests[0].test_func = test_netlists_present;
-    tests[0].initial_state = &n;
-    tests[1].name = "checkers_can_fail";
-    tests[1].test_func = test_checkers_can_fail;
-    for (int k = 0; k < n; k++) {
-        names[k] = malloc(strlen(paths[k]) + 16);
-        if (!names[k])
-            return 1;
-        sprintf(names[k], "emit %s", paths[k]);
-        tests[k + 2].name = names[k];
-        tests[k + 2].test_func = test_netlist;
-        tests[k + 2].initial_state = paths[k];
-    }
-    int rc = _cmocka_run_group_tests("emit", tests, (size_t)n + 2, NULL, NULL);
-    for (int k = 0; k < n; k++)
-        free(names[k]);
-    free(names);
-    free(tests);
-    tl_netlists_free(paths, n);
-    return rc;
+    const struct CMUnitTest fixed[] = {
+        {.name = "checkers_can_fail", .test_func = test_checkers_can_fail},
+    };
+    return tl_run_per_netlist("emit", test_netlist, fixed, 1);
 }

@@ -30,13 +30,6 @@
 #define TOL_BOUND 1e-9    /* relative to the peak energy */
 #define TOL_AGREE 1e-9    /* relative to the peak energy or work */
 
-static uint64_t hash_str(const char *s) {
-    uint64_t h = 1469598103934665603ull;
-    for (; *s; s++)
-        h = (h ^ (unsigned char)*s) * 1099511628211ull;
-    return h;
-}
-
 /* Whether some source has a constant nonzero drive (such a network is not
  * silent when its inputs are). */
 static int has_constant_drive(const Circuit *c) {
@@ -146,7 +139,7 @@ static void test_netlist(void **state) {
         tl_voice_free(&v);
         fail_msg("%s: the voice could not be built", path);
     }
-    uint64_t seed = hash_str(path);
+    uint64_t seed = tl_hash_str(path);
     int failed = 0;
     double agree = 0.0, a;
     tl_run r;
@@ -252,35 +245,4 @@ static void test_netlist(void **state) {
         fail_msg("%s: energy check failed", path);
 }
 
-static void test_netlists_present(void **state) {
-    int n = *(int *)*state;
-    assert_true(n > 0);
-}
-
-int main(void) {
-    int n = 0;
-    char **paths = tl_netlists(&n);
-    struct CMUnitTest *tests = calloc((size_t)n + 1, sizeof *tests);
-    char **names = calloc((size_t)n + 1, sizeof *names);
-    if (!tests || !names)
-        return 1;
-    tests[0].name = "netlists_present";
-    tests[0].test_func = test_netlists_present;
-    tests[0].initial_state = &n;
-    for (int k = 0; k < n; k++) {
-        names[k] = malloc(strlen(paths[k]) + 16);
-        if (!names[k])
-            return 1;
-        sprintf(names[k], "energy %s", paths[k]);
-        tests[k + 1].name = names[k];
-        tests[k + 1].test_func = test_netlist;
-        tests[k + 1].initial_state = paths[k];
-    }
-    int rc = _cmocka_run_group_tests("energy", tests, (size_t)n + 1, NULL, NULL);
-    for (int k = 0; k < n; k++)
-        free(names[k]);
-    free(names);
-    free(tests);
-    tl_netlists_free(paths, n);
-    return rc;
-}
+int main(void) { return tl_run_per_netlist("energy", test_netlist, NULL, 0); }

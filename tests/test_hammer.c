@@ -60,59 +60,54 @@ typedef struct ode_ref {
     int n;
 } ode_ref;
 
-typedef struct fixture {
-    ode_ref ode;
-    tl_voice voice;
-    int built;
-} fixture;
+typedef struct reading {
+    ode_ref *o;
+    int have; /* bit k: figure k read */
+} reading;
 
-static int load_csv(const char *path, ode_ref *o)
+static int read_row(const char *line, const char *path, int lineno, void *ctx)
 {
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        fprintf(stderr, "test_hammer: cannot open %s (run from the repository "
-                        "root; regenerate with sh tests/ref/hammer_ode.sh)\n",
-                path);
+    reading *rd = ctx;
+    ode_ref *o = rd->o;
+    if (!strncmp(line, "t_s,", 4))
+        return 0;
+    char key[64];
+    double a, b;
+    if (sscanf(line, "%63[a-z_N],%lf", key, &a) == 2) {
+        const char *names[5] = {"peak_force_N", "peak_time_s",
+                                "contact_start_s", "contact_end_s",
+                                "contact_duration_s"};
+        double *dst[5] = {&o->peak, &o->t_peak, &o->t_start, &o->t_end,
+                          &o->dur};
+        for (int k = 0; k < 5; k++)
+            if (!strcmp(key, names[k])) {
+                *dst[k] = a;
+                rd->have |= 1 << k;
+            }
+        return 0;
+    }
+    if (sscanf(line, "%lf,%lf", &a, &b) != 2) {
+        fprintf(stderr, "%s:%d: malformed row\n", path, lineno);
         return -1;
     }
-    memset(o, 0, sizeof *o);
-    int have = 0, lineno = 0;
-    char line[256];
-    while (fgets(line, sizeof line, f)) {
-        lineno++;
-        if (line[0] == '#' || line[0] == '\n' || !strncmp(line, "t_s,", 4))
-            continue;
-        char key[64];
-        double a, b;
-        if (sscanf(line, "%63[a-z_N],%lf", key, &a) == 2) {
-            const char *names[5] = {"peak_force_N", "peak_time_s",
-                                    "contact_start_s", "contact_end_s",
-                                    "contact_duration_s"};
-            double *dst[5] = {&o->peak, &o->t_peak, &o->t_start, &o->t_end,
-                              &o->dur};
-            for (int k = 0; k < 5; k++)
-                if (!strcmp(key, names[k])) {
-                    *dst[k] = a;
-                    have |= 1 << k;
-                }
-            continue;
-        }
-        if (sscanf(line, "%lf,%lf", &a, &b) != 2) {
-            fprintf(stderr, "%s:%d: malformed row\n", path, lineno);
-            fclose(f);
-            return -1;
-        }
-        long m = lround(a * FS_REF);
-        if (m != o->n || m >= MAXREF || fabs(a * FS_REF - (double)m) > 1e-6) {
-            fprintf(stderr, "%s:%d: expected t = %d/48000\n", path, lineno,
-                    o->n);
-            fclose(f);
-            return -1;
-        }
-        o->f[o->n++] = b;
+    long m = lround(a * FS_REF);
+    if (m != o->n || m >= MAXREF || fabs(a * FS_REF - (double)m) > 1e-6) {
+        fprintf(stderr, "%s:%d: expected t = %d/48000\n", path, lineno,
+                o->n);
+        return -1;
     }
-    fclose(f);
-    if (have != 31 || o->n < 2) {
+    o->f[o->n++] = b;
+    return 0;
+}
+
+static int load_csv(void *data)
+{
+    const char *path = CSV_PATH;
+    ode_ref *o = data;
+    reading rd = {o, 0};
+    if (tl_read_csv(path, NULL, "sh tests/ref/hammer_ode.sh", read_row, &rd) != 0)
+        return -1;
+    if (rd.have != 31 || o->n < 2) {
         fprintf(stderr, "%s: missing figures or samples\n", path);
         return -1;
     }
@@ -121,48 +116,15 @@ static int load_csv(const char *path, ode_ref *o)
 
 static int setup(void **st)
 {
-    fixture *fx = calloc(1, sizeof *fx);
-    if (!fx)
-        return -1;
-    if (load_csv(CSV_PATH, &fx->ode) != 0) {
-        free(fx);
-        return -1;
-    }
-    if (tl_voice_build(NETLIST, 0, &fx->voice) != 0) {
-        tl_voice_free(&fx->voice);
-        free(fx);
-        return -1;
-    }
-    fx->built = 1;
-    *st = fx;
-    return 0;
+    return tl_fixture_setup(st, NETLIST, sizeof(ode_ref), load_csv, NULL);
 }
 
-static int teardown(void **st)
-{
-    fixture *fx = *st;
-    if (fx) {
-        if (fx->built)
-            tl_voice_free(&fx->voice);
-        free(fx);
-    }
-    return 0;
-}
-
-static int output_id(const wdv_class *cls, const char *name)
-{
-    for (int k = 0; k < cls->n_outputs; k++)
-        if (strcmp(cls->outputs[k].name, name) == 0)
-            return k;
-    return -1;
-}
-
-static void check_rate(const fixture *fx, int over)
+static void check_rate(const tl_fixture *fx, int over)
 {
     const wdv_class *cls = fx->voice.cls;
-    const ode_ref *o = &fx->ode;
+    const ode_ref *o = fx->data;
     double fs = FS_REF * over;
-    int of = output_id(cls, "force"), ox = output_id(cls, "xh");
+    int of = tl_output_id(cls, "force"), ox = tl_output_id(cls, "xh");
     if (of < 0 || ox < 0)
         fail_msg("voice %s lacks output `force` or `xh`", cls->name);
     long n = (long)ceil(SECONDS * fs) + 1;
@@ -244,5 +206,5 @@ int main(void)
         cmocka_unit_test(test_hammer_48k),
         cmocka_unit_test(test_hammer_96k),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, setup, tl_fixture_teardown);
 }

@@ -49,13 +49,6 @@
 
 static const double rates[] = {48000.0, 44100.0, 96000.0};
 
-static uint64_t hash_str(const char *s) {
-    uint64_t h = 1469598103934665603ull;
-    for (; *s; s++)
-        h = (h ^ (unsigned char)*s) * 1099511628211ull;
-    return h;
-}
-
 /* What one precision's runs came to. */
 typedef struct tally {
     double worst;     /* largest error */
@@ -150,7 +143,7 @@ static void test_netlist(void **state) {
     }
     tally td = {0}, tf = {0};
     int failed = 0;
-    uint64_t seed = hash_str(path);
+    uint64_t seed = tl_hash_str(path);
     for (size_t ri = 0; ri < sizeof rates / sizeof rates[0]; ri++)
         for (int si = 0; si < 2; si++) {
             tl_sigkind sig = si ? TL_STEP : TL_NOISE;
@@ -174,35 +167,4 @@ static void test_netlist(void **state) {
         fail_msg("%s: the voice does not match the reference", path);
 }
 
-static void test_netlists_present(void **state) {
-    int n = *(int *)*state;
-    assert_true(n > 0);
-}
-
-int main(void) {
-    int n = 0;
-    char **paths = tl_netlists(&n);
-    struct CMUnitTest *tests = calloc((size_t)n + 1, sizeof *tests);
-    char **names = calloc((size_t)n + 1, sizeof *names);
-    if (!tests || !names)
-        return 1;
-    tests[0].name = "netlists_present";
-    tests[0].test_func = test_netlists_present;
-    tests[0].initial_state = &n;
-    for (int k = 0; k < n; k++) {
-        names[k] = malloc(strlen(paths[k]) + 16);
-        if (!names[k])
-            return 1;
-        sprintf(names[k], "linear %s", paths[k]);
-        tests[k + 1].name = names[k];
-        tests[k + 1].test_func = test_netlist;
-        tests[k + 1].initial_state = paths[k];
-    }
-    int rc = _cmocka_run_group_tests("linear", tests, (size_t)n + 1, NULL, NULL);
-    for (int k = 0; k < n; k++)
-        free(names[k]);
-    free(names);
-    free(tests);
-    tl_netlists_free(paths, n);
-    return rc;
-}
+int main(void) { return tl_run_per_netlist("linear", test_netlist, NULL, 0); }

@@ -26,22 +26,21 @@ static char *first_report(const char *text, Solver solver) {
     FILE *saved = diag.out;
     diag.out = mem;
     Circuit *c = wdc_load_string("t.wdn", text);
-    if (c) {
+    static char dir[32];
+    strcpy(dir, "/tmp/wdc-nldiag.XXXXXX");
+    if (c && mkdtemp(dir)) {
         jmp_buf jb;
         diag.jmp = &jb;
         if (!setjmp(jb)) {
             Wdf *w = wdf_build(c, c->rate);
-            char dir[] = "/tmp/wdc-nldiag.XXXXXX";
-            if (mkdtemp(dir)) {
-                EmitOpts eo = {.outdir = dir, .solver = solver, .table = 64, .tol = 1e-12, .maxit = 50};
-                emit_voice(w, &eo);
-                char cmd[64];
-                snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
-                if (system(cmd) != 0)
-                    fprintf(mem, "cannot remove %s\n", dir);
-            }
+            EmitOpts eo = {.outdir = dir, .solver = solver, .table = 64, .tol = 1e-12, .maxit = 50};
+            emit_voice(w, &eo);
         }
         diag.jmp = NULL;
+        char cmd[64]; /* also after an error unwound the emitter */
+        snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+        if (system(cmd) != 0)
+            fprintf(mem, "cannot remove %s\n", dir);
     }
     fclose(mem);
     diag.out = saved;

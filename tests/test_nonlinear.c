@@ -86,12 +86,10 @@
 #include <stdint.h>
 
 #include <cmocka.h>
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -107,9 +105,9 @@
 #define INSTABLE_GAIN 1.2
 #define MAXOUT 8
 
-/* ---- voices built with extra compiler arguments ---- */
+/* ---- temporary netlists ---- */
 
-/* Files and directories this test made, removed at exit. */
+/* Files this test made, removed at exit. */
 #define MAX_TEMP 128
 static char temp_paths[MAX_TEMP][96];
 
@@ -135,95 +133,6 @@ static void track_temp(const char *path) {
             snprintf(temp_paths[k], sizeof temp_paths[k], "%s", path);
             return;
         }
-}
-
-/* Forgets the tracked paths under dir (removed by tl_voice_free). */
-static void untrack_dir(const char *dir) {
-    size_t n = strlen(dir);
-    for (int k = 0; k < MAX_TEMP; k++)
-        if (n && !strncmp(temp_paths[k], dir, n) &&
-            (temp_paths[k][n] == '\0' || temp_paths[k][n] == '/'))
-            temp_paths[k][0] = '\0';
-}
-
-static int run_command(char *const argv[]) {
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        execv(argv[0], argv);
-        fprintf(stderr, "test_nonlinear: cannot run %s: %s\n", argv[0], strerror(errno));
-        _exit(127);
-    }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR)
-            return -1;
-    if (WIFSIGNALED(status))
-        return 128 + WTERMSIG(status);
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-/* tl_voice_build with extra arguments for bin/wdc (NULL-terminated list,
- * or NULL); the voice named `name` is loaded.  Free with voice_free. */
-static int build_voice(const char *netlist, const char *name, const char *const *extra,
-                       tl_voice *v) {
-    memset(v, 0, sizeof *v);
-    snprintf(v->dir, sizeof v->dir, "/tmp/wdc-nl-XXXXXX");
-    if (!mkdtemp(v->dir)) {
-        v->dir[0] = '\0';
-        return -1;
-    }
-    track_temp(v->dir);
-    const char *wdc = getenv("WDC");
-    if (!wdc || !*wdc)
-        wdc = "bin/wdc";
-    char *argv[24];
-    int n = 0;
-    argv[n++] = (char *)wdc;
-    argv[n++] = (char *)netlist;
-    argv[n++] = "-o";
-    argv[n++] = v->dir;
-    for (int k = 0; extra && extra[k] && n < 22; k++)
-        argv[n++] = (char *)extra[k];
-    argv[n] = NULL;
-    int st = run_command(argv);
-    snprintf(v->name, sizeof v->name, "%s", name);
-    char csrc[512], so[512], h[512], wh[512];
-    snprintf(csrc, sizeof csrc, "%s/%s.c", v->dir, name);
-    snprintf(h, sizeof h, "%s/%s.h", v->dir, name);
-    snprintf(wh, sizeof wh, "%s/wdvoice.h", v->dir);
-    snprintf(so, sizeof so, "%s/%s.so", v->dir, name);
-    /* tl_voice_free removes the directory's files; should a test stop
-     * before it, these go at exit */
-    track_temp(csrc);
-    track_temp(h);
-    track_temp(wh);
-    track_temp(so);
-    if (st != 0) {
-        print_error("%s %s -o %s ...: exit status %d\n", wdc, netlist, v->dir, st);
-        return -1;
-    }
-    wdrt_result r = wdrt_voice_compile(csrc, so, NULL, "-O2 -Wall -Wextra -pedantic");
-    if (r != WDRT_OK) {
-        print_error("compiling %s: %s\n", csrc, wdrt_result_str(r));
-        return -1;
-    }
-    r = wdrt_voice_open(so, name, &v->lib);
-    if (r != WDRT_OK) {
-        print_error("loading %s: %s\n", so, wdrt_result_str(r));
-        return -1;
-    }
-    v->cls = v->lib.cls;
-    return 0;
-}
-
-static void voice_free(tl_voice *v) {
-    char dir[sizeof v->dir];
-    memcpy(dir, v->dir, sizeof dir);
-    tl_voice_free(v);
-    untrack_dir(dir);
 }
 
 /* Writes the text of `src` with the first occurrence of `find` replaced
@@ -256,22 +165,11 @@ static int write_variant(const char *src, const char *find, const char *repl, ch
 
 /* ---- runs ---- */
 
+/* tl_bufs_new, failing the test if memory runs out. */
 static double **bufs_new(int n, long len) {
-    double **b = calloc((size_t)n + 1, sizeof *b);
+    double **b = tl_bufs_new(n, len);
     assert_non_null(b);
-    for (int k = 0; k < n; k++) {
-        b[k] = calloc((size_t)len + 1, sizeof(double));
-        assert_non_null(b[k]);
-    }
     return b;
-}
-
-static void bufs_free(double **b, int n) {
-    if (!b)
-        return;
-    for (int k = 0; k < n; k++)
-        free(b[k]);
-    free(b);
 }
 
 /* Renders nframes of a fresh instance at fs, with one input (or none). */
@@ -520,8 +418,8 @@ static void diode_solvers(const char *path) {
     int failed = 0;
     for (int s = 0; s < NSOLVERS; s++) {
         tl_voice v;
-        if (build_voice(var, c->name, solvers[s].args, &v) != 0) {
-            voice_free(&v);
+        if (tl_voice_build_args(var, 0, solvers[s].args, NULL, &v) != 0) {
+            tl_voice_free(&v);
             fail_msg("%s: the voice could not be built with --solver %s", path,
                      solvers[s].label);
         }
@@ -566,11 +464,11 @@ static void diode_solvers(const char *path) {
                               ref[d][iout][ati]);
             }
         }
-        voice_free(&v);
+        tl_voice_free(&v);
     }
     for (int d = 0; d < NDRIVES; d++)
-        bufs_free(ref[d], c->nouts);
-    bufs_free(out, c->nouts);
+        tl_bufs_free(ref[d], c->nouts);
+    tl_bufs_free(out, c->nouts);
     free(in);
     if (failed)
         fail_msg("%s: a solver's voice is off the converged reference", path);
@@ -594,8 +492,8 @@ static int contact_vs_ref(const char *path, const char *label) {
     assert_non_null(c);
     assert_true(c->nouts <= MAXOUT);
     tl_voice v;
-    if (build_voice(path, c->name, NULL, &v) != 0) {
-        voice_free(&v);
+    if (tl_voice_build_args(path, 0, NULL, NULL, &v) != 0) {
+        tl_voice_free(&v);
         fail_msg("%s: the voice could not be built", path);
     }
     int failed = 0;
@@ -630,10 +528,10 @@ static int contact_vs_ref(const char *path, const char *label) {
             print_message("%s: the reference did not converge at %ld samples\n", c->name,
                           info.unconverged);
         }
-        bufs_free(ref, c->nouts);
-        bufs_free(out, c->nouts);
+        tl_bufs_free(ref, c->nouts);
+        tl_bufs_free(out, c->nouts);
     }
-    voice_free(&v);
+    tl_voice_free(&v);
     return failed ? -1 : 0;
 }
 
@@ -680,8 +578,8 @@ static void test_other_nonlinear(void **state) {
             continue;
         }
         tl_voice v;
-        if (build_voice(paths[k], c->name, NULL, &v) != 0) {
-            voice_free(&v);
+        if (tl_voice_build_args(paths[k], 0, NULL, NULL, &v) != 0) {
+            tl_voice_free(&v);
             tl_netlists_free(paths, n);
             fail_msg("%s: the voice could not be built", paths[k]);
         }
@@ -694,7 +592,7 @@ static void test_other_nonlinear(void **state) {
         o.with_floor = 64;
         tl_run run;
         int rc = tl_run_side_by_side(c, v.cls, &o, &run);
-        voice_free(&v);
+        tl_voice_free(&v);
         if (rc != 0) {
             tl_netlists_free(paths, n);
             fail_msg("%s: the run failed", paths[k]);
@@ -823,10 +721,10 @@ static void test_passivity_inputs(void **state) {
          * every solver on a copy without solver= keys */
         for (int s = -1; s < NSOLVERS; s++) {
             tl_voice v;
-            int rc = s < 0 ? build_voice(paths[k], c->name, NULL, &v)
-                           : build_voice(var, c->name, solvers[s].args, &v);
+            int rc = s < 0 ? tl_voice_build_args(paths[k], 0, NULL, NULL, &v)
+                           : tl_voice_build_args(var, 0, solvers[s].args, NULL, &v);
             if (rc != 0) {
-                voice_free(&v);
+                tl_voice_free(&v);
                 tl_netlists_free(paths, n);
                 fail_msg("%s: the voice could not be built", paths[k]);
             }
@@ -868,7 +766,7 @@ static void test_passivity_inputs(void **state) {
                 print_message("  FAILED: that is more than %.0e of the peak energy %.3g J\n",
                               PASS_TOL, p.peak);
             }
-            voice_free(&v);
+            tl_voice_free(&v);
         }
     }
     tl_netlists_free(paths, n);
@@ -980,8 +878,8 @@ static void thrown(const char *path) {
     double E0 = initial_energy(c);
     assert_true(E0 > 0.0);
     tl_voice v;
-    if (build_voice(path, c->name, NULL, &v) != 0) {
-        voice_free(&v);
+    if (tl_voice_build_args(path, 0, NULL, NULL, &v) != 0) {
+        tl_voice_free(&v);
         fail_msg("%s: the voice could not be built", path);
     }
     int failed = 0;
@@ -1001,7 +899,7 @@ static void thrown(const char *path) {
                       "%.15g of E0\n",
                       c->name, rates[ri], E0, worst, rworst, emax);
     }
-    voice_free(&v);
+    tl_voice_free(&v);
     if (failed)
         fail_msg("%s: the energy of the thrown mass is not passive", path);
 }
@@ -1131,8 +1029,8 @@ static void test_stiff_contact(void **state) {
     double E0 = initial_energy(c);
     assert_true(fabs(E0 - 0.5 * h.mh * h.vh0 * h.vh0) <= 1e-15 * E0);
     tl_voice v;
-    if (build_voice(var, c->name, NULL, &v) != 0) {
-        voice_free(&v);
+    if (tl_voice_build_args(var, 0, NULL, NULL, &v) != 0) {
+        tl_voice_free(&v);
         fail_msg("the stiff hammer voice could not be built");
     }
     static const double rates[] = {8000.0, 48000.0};
@@ -1166,7 +1064,7 @@ static void test_stiff_contact(void **state) {
         if (rc != 0)
             failed = 1;
     }
-    voice_free(&v);
+    tl_voice_free(&v);
     if (failed)
         fail_msg("stability comparison failed");
 }

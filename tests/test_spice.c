@@ -39,10 +39,9 @@
 #define FS 48000.0
 #define NSETTINGS 3
 #define REL_TOL 1e-6
-/* The impulse response counts as decayed once a whole block of it stays
+/* The impulse response counts as decayed once a whole chunk of it stays
  * below this (the input impulse has height 1 V). */
 #define DECAY_FLOOR 1e-15
-#define BLOCK 4800L
 #define MAX_SECONDS 120
 
 #ifndef M_PI
@@ -56,184 +55,56 @@ typedef struct row {
     double complex h;
 } row;
 
-typedef struct fixture {
+/* The rows of the data. */
+typedef struct table {
     row *rows;
-    int nrows;
-    tl_voice voice;
-    int built;
-} fixture;
+    int n, cap;
+} table;
 
-static int load_csv(const char *path, row **rows_out, int *n_out)
+static int read_row(const char *line, const char *path, int lineno, void *ctx)
 {
-    FILE *f = fopen(path, "r");
-    if (!f) {
-        fprintf(stderr, "test_spice: cannot open %s (run from the "
-                        "repository root; regenerate with "
-                        "sh tests/ref/tonestack_ngspice.sh)\n", path);
+    table *t = ctx;
+    row r;
+    double re, im;
+    if (sscanf(line, "%d,%lf,%lf,%lf,%lf,%lf,%lf", &r.set, &r.treble,
+               &r.bass, &r.mid, &r.f, &re, &im) != 7) {
+        fprintf(stderr, "%s:%d: malformed row\n", path, lineno);
         return -1;
     }
-    int cap = 1024, n = 0, lineno = 0;
-    row *rows = malloc((size_t)cap * sizeof *rows);
-    char line[512];
-    while (rows && fgets(line, sizeof line, f)) {
-        lineno++;
-        if (lineno == 1 && strncmp(line, "setting_index", 13) == 0)
-            continue;
-        if (line[0] == '\n' || line[0] == '#')
-            continue;
-        row r;
-        double re, im;
-        if (sscanf(line, "%d,%lf,%lf,%lf,%lf,%lf,%lf", &r.set, &r.treble,
-                   &r.bass, &r.mid, &r.f, &re, &im) != 7) {
-            fprintf(stderr, "%s:%d: malformed row\n", path, lineno);
-            free(rows);
-            fclose(f);
+    r.h = re + I * im;
+    if (t->n == t->cap) {
+        row *p = realloc(t->rows, (size_t)t->cap * 2 * sizeof *t->rows);
+        if (!p)
             return -1;
-        }
-        r.h = re + I * im;
-        if (n == cap) {
-            cap *= 2;
-            row *p = realloc(rows, (size_t)cap * sizeof *rows);
-            if (!p) {
-                free(rows);
-                rows = NULL;
-                break;
-            }
-            rows = p;
-        }
-        rows[n++] = r;
+        t->rows = p;
+        t->cap *= 2;
     }
-    fclose(f);
-    if (!rows)
-        return -1;
-    *rows_out = rows;
-    *n_out = n;
+    t->rows[t->n++] = r;
     return 0;
+}
+
+static int load_csv(void *data)
+{
+    table *t = data;
+    t->cap = 1024;
+    t->rows = malloc((size_t)t->cap * sizeof *t->rows);
+    if (!t->rows ||
+        tl_read_csv(CSV_PATH, "setting_index", "sh tests/ref/tonestack_ngspice.sh",
+                    read_row, t) != 0) {
+        free(t->rows);
+        return -1;
+    }
+    return 0;
+}
+
+static void free_rows(void *data)
+{
+    free(((table *)data)->rows);
 }
 
 static int setup(void **st)
 {
-    fixture *fx = calloc(1, sizeof *fx);
-    if (!fx)
-        return -1;
-    if (load_csv(CSV_PATH, &fx->rows, &fx->nrows) != 0) {
-        free(fx);
-        return -1;
-    }
-    if (tl_voice_build(NETLIST, 0, &fx->voice) != 0) {
-        tl_voice_free(&fx->voice);
-        free(fx->rows);
-        free(fx);
-        return -1;
-    }
-    fx->built = 1;
-    *st = fx;
-    return 0;
-}
-
-static int teardown(void **st)
-{
-    fixture *fx = *st;
-    if (fx) {
-        if (fx->built)
-            tl_voice_free(&fx->voice);
-        free(fx->rows);
-        free(fx);
-    }
-    return 0;
-}
-
-static int param_id(const wdv_class *cls, const char *name)
-{
-    for (int k = 0; k < cls->n_params; k++)
-        if (strcmp(cls->params[k].name, name) == 0)
-            return k;
-    return -1;
-}
-
-static int output_id(const wdv_class *cls, const char *name)
-{
-    for (int k = 0; k < cls->n_outputs; k++)
-        if (strcmp(cls->outputs[k].name, name) == 0)
-            return k;
-    return -1;
-}
-
-/* Renders the response of output `oid` to a unit impulse at sample 0 until
- * a whole block stays under DECAY_FLOOR; returns the malloc'ed response
- * and its length in *n, or NULL if it does not decay in MAX_SECONDS. */
-static double *impulse_response(const wdv_class *cls, void *state, int oid,
-                                long *n)
-{
-    int nout = cls->n_outputs;
-    long cap = 16 * BLOCK, len = 0;
-    double *h = malloc((size_t)cap * sizeof *h);
-    double *scratch = malloc((size_t)BLOCK * (size_t)nout * sizeof *scratch);
-    double **out = malloc((size_t)nout * sizeof *out);
-    double *imp = calloc((size_t)BLOCK, sizeof *imp);
-    const double **in = calloc((size_t)(cls->n_inputs > 0 ? cls->n_inputs : 1),
-                               sizeof *in);
-    if (!h || !scratch || !out || !imp || !in)
-        goto fail;
-    imp[0] = 1.0;
-    for (;;) {
-        if (len + BLOCK > cap) {
-            cap *= 2;
-            double *p = realloc(h, (size_t)cap * sizeof *h);
-            if (!p)
-                goto fail;
-            h = p;
-        }
-        for (int k = 0; k < nout; k++)
-            out[k] = (k == oid) ? h + len : scratch + (size_t)k * BLOCK;
-        for (int k = 0; k < cls->n_inputs; k++)
-            in[k] = (len == 0) ? imp : NULL;
-        wdrt_render(cls, state, in, out, BLOCK, 256);
-        double peak = 0;
-        for (long i = len; i < len + BLOCK; i++) {
-            if (!isfinite(h[i]))
-                goto fail;
-            if (fabs(h[i]) > peak)
-                peak = fabs(h[i]);
-        }
-        len += BLOCK;
-        if (len > BLOCK && peak < DECAY_FLOOR)
-            break;
-        if (len >= (long)(MAX_SECONDS * FS))
-            goto fail;
-    }
-    free(scratch);
-    free(out);
-    free(imp);
-    free(in);
-    *n = len;
-    return h;
-fail:
-    free(h);
-    free(scratch);
-    free(out);
-    free(imp);
-    free(in);
-    return NULL;
-}
-
-/* sum_n h[n] e^{-j w n}; the phasor is recomputed exactly every 256
- * samples so its rounding drift stays near 256 ulps. */
-static double complex dtft(const double *h, long n, double w)
-{
-    double complex acc = 0;
-    const double complex step = cexp(-I * w);
-    for (long k0 = 0; k0 < n; k0 += 256) {
-        long k1 = k0 + 256 < n ? k0 + 256 : n;
-        double complex z = cexp(-I * (w * (double)k0));
-        double complex part = 0;
-        for (long k = k0; k < k1; k++) {
-            part += h[k] * z;
-            z *= step;
-        }
-        acc += part;
-    }
-    return acc;
+    return tl_fixture_setup(st, NETLIST, sizeof(table), load_csv, free_rows);
 }
 
 /* The digital frequency (Hz) the bilinear transform maps to analog f. */
@@ -244,16 +115,17 @@ static double warp(double f, double fs)
 
 static void test_tonestack_vs_ngspice(void **st)
 {
-    fixture *fx = *st;
+    const tl_fixture *fx = *st;
+    const table *tb = fx->data;
     const wdv_class *cls = fx->voice.cls;
     const char *pname[3] = {"treble", "bass", "mid"};
     int pid[3];
     for (int k = 0; k < 3; k++) {
-        pid[k] = param_id(cls, pname[k]);
+        pid[k] = tl_param_id(cls, pname[k]);
         if (pid[k] < 0)
             fail_msg("voice %s has no param %s", cls->name, pname[k]);
     }
-    int oid = output_id(cls, "out");
+    int oid = tl_output_id(cls, "out");
     if (oid < 0)
         fail_msg("voice %s has no output `out`", cls->name);
     assert_true(cls->n_inputs == 1);
@@ -263,9 +135,9 @@ static void test_tonestack_vs_ngspice(void **st)
     for (int s = 0; s < NSETTINGS; s++) {
         /* The pot positions come from the data. */
         const row *first = NULL;
-        for (int i = 0; i < fx->nrows && !first; i++)
-            if (fx->rows[i].set == s)
-                first = &fx->rows[i];
+        for (int i = 0; i < tb->n && !first; i++)
+            if (tb->rows[i].set == s)
+                first = &tb->rows[i];
         if (!first)
             fail_msg("%s: no rows for setting %d", CSV_PATH, s);
         double pv[3] = {first->treble, first->bass, first->mid};
@@ -279,7 +151,8 @@ static void test_tonestack_vs_ngspice(void **st)
         cls->reset(state);
 
         long n = 0;
-        double *h = impulse_response(cls, state, oid, &n);
+        double *h = tl_impulse_response(cls, state, oid, 256, DECAY_FLOOR,
+                                        (long)(MAX_SECONDS * FS), &n);
         tl_state_free(state);
         if (!h)
             fail_msg("setting %d (treble=%g bass=%g mid=%g): the impulse "
@@ -289,12 +162,12 @@ static void test_tonestack_vs_ngspice(void **st)
 
         double worst = 0, worst_f = 0;
         int nrows = 0;
-        for (int i = 0; i < fx->nrows; i++) {
-            const row *r = &fx->rows[i];
+        for (int i = 0; i < tb->n; i++) {
+            const row *r = &tb->rows[i];
             if (r->set != s)
                 continue;
             double w = 2.0 * M_PI * warp(r->f, FS) / FS;
-            double complex hd = dtft(h, n, w);
+            double complex hd = tl_dtft(h, n, w);
             double err = cabs(hd - r->h) / cabs(r->h);
             if (!(err < REL_TOL)) {
                 free(h);
@@ -324,15 +197,15 @@ static void test_tonestack_vs_ngspice(void **st)
         const double fw[4] = {1000, 5000, 10000, 15000};
         for (int j = 0; j < 4; j++) {
             const row *r = NULL;
-            for (int i = 0; i < fx->nrows && !r; i++)
-                if (fx->rows[i].set == s && fx->rows[i].f == fw[j])
-                    r = &fx->rows[i];
+            for (int i = 0; i < tb->n && !r; i++)
+                if (tb->rows[i].set == s && tb->rows[i].f == fw[j])
+                    r = &tb->rows[i];
             if (!r) {
                 print_message("  no row at exactly %g Hz in %s\n", fw[j],
                               CSV_PATH);
                 continue;
             }
-            double complex hd = dtft(h, n, 2.0 * M_PI * fw[j] / FS);
+            double complex hd = tl_dtft(h, n, 2.0 * M_PI * fw[j] / FS);
             double dmag = tl_db(cabs(hd)) - tl_db(cabs(r->h));
             double dph = carg(hd / r->h) * 180.0 / M_PI;
             double rel = cabs(hd - r->h) / cabs(r->h);
@@ -352,5 +225,5 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_tonestack_vs_ngspice),
     };
-    return cmocka_run_group_tests(tests, setup, teardown);
+    return cmocka_run_group_tests(tests, setup, tl_fixture_teardown);
 }

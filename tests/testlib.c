@@ -2,6 +2,7 @@
 #include "testlib.h"
 
 #include <cmocka.h>
+#include <complex.h>
 #include <dirent.h>
 #include <errno.h>
 #include <glob.h>
@@ -9,34 +10,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 /* ---- voices ---- */
 
-/* Runs argv[0] with argv and waits; returns its exit status, 128 + N if
- * signal N ended it, or -1 if it could not be run. */
-static int run_command(char *const argv[]) {
-    fflush(NULL);
-    pid_t pid = fork();
-    if (pid < 0)
-        return -1;
-    if (pid == 0) {
-        execv(argv[0], argv);
-        fprintf(stderr, "testlib: cannot run %s: %s\n", argv[0], strerror(errno));
-        _exit(127);
-    }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR)
-            return -1;
-    if (WIFSIGNALED(status))
-        return 128 + WTERMSIG(status);
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-/* Finds the one NAME.c in dir. */
-static int find_voice_source(const char *dir, char *name, size_t cap) {
+int tl_voice_name(const char *dir, char *name, size_t cap) {
     DIR *d = opendir(dir);
     if (!d)
         return -1;
@@ -56,7 +34,7 @@ static int find_voice_source(const char *dir, char *name, size_t cap) {
     return found == 1 ? 0 : -1;
 }
 
-static void remove_dir(const char *dir) {
+void tl_remove_dir(const char *dir) {
     DIR *d = opendir(dir);
     if (!d)
         return;
@@ -87,7 +65,7 @@ static void remove_dirs_at_exit(void) {
         return;
     for (int k = 0; k < TL_MAX_DIRS; k++)
         if (tl_dirs[k][0]) {
-            remove_dir(tl_dirs[k]);
+            tl_remove_dir(tl_dirs[k]);
             tl_dirs[k][0] = '\0';
         }
 }
@@ -110,7 +88,75 @@ static void track_dir(const char *dir, int add) {
     }
 }
 
-int tl_voice_build(const char *netlist, int single, tl_voice *v) {
+/* Prints argv, space-separated, to stderr. */
+static void print_argv(char *const argv[]) {
+    for (int k = 0; argv[k]; k++)
+        fprintf(stderr, "%s%s", k ? " " : "", argv[k]);
+}
+
+int tl_voice_make(const char *netlist, const char *dir, const char *const *extra,
+                  const char *cflags) {
+    const char *wdc = getenv("WDC");
+    if (!wdc || !*wdc)
+        wdc = "bin/wdc";
+    char *argv[TL_MAX_WDC_ARGS + 5];
+    int n = 0;
+    argv[n++] = (char *)wdc;
+    argv[n++] = (char *)netlist;
+    argv[n++] = "-o";
+    argv[n++] = (char *)dir;
+    for (int k = 0; extra && extra[k]; k++) {
+        if (k == TL_MAX_WDC_ARGS) {
+            fprintf(stderr, "testlib: %s: more than %d arguments for wdc\n", netlist,
+                    TL_MAX_WDC_ARGS);
+            return -1;
+        }
+        argv[n++] = (char *)extra[k];
+    }
+    argv[n] = NULL;
+    int st = -1;
+    if (wdrt_spawn(argv, -1, &st) != WDRT_OK || st != 0) {
+        fprintf(stderr, "testlib: ");
+        print_argv(argv);
+        fprintf(stderr, ": exit status %d\n", st);
+        return -1;
+    }
+    char name[128];
+    if (tl_voice_name(dir, name, sizeof name) != 0) {
+        fprintf(stderr, "testlib: %s: expected one voice source in %s\n", netlist, dir);
+        return -1;
+    }
+    char csrc[512], so[512];
+    snprintf(csrc, sizeof csrc, "%s/%s.c", dir, name);
+    snprintf(so, sizeof so, "%s/%s.so", dir, name);
+    wdrt_result r = wdrt_voice_compile(csrc, so, NULL, cflags ? cflags : TL_VOICE_CFLAGS);
+    if (r != WDRT_OK) {
+        fprintf(stderr, "testlib: compiling %s: %s\n", csrc, wdrt_result_str(r));
+        return -1;
+    }
+    return 0;
+}
+
+int tl_voice_load(tl_voice *v) {
+    v->lib.handle = NULL;
+    v->cls = NULL;
+    if (tl_voice_name(v->dir, v->name, sizeof v->name) != 0) {
+        fprintf(stderr, "testlib: expected one voice source in %s\n", v->dir);
+        return -1;
+    }
+    char so[512];
+    snprintf(so, sizeof so, "%s/%s.so", v->dir, v->name);
+    wdrt_result r = wdrt_voice_open(so, v->name, &v->lib);
+    if (r != WDRT_OK) {
+        fprintf(stderr, "testlib: loading %s: %s\n", so, wdrt_result_str(r));
+        return -1;
+    }
+    v->cls = v->lib.cls;
+    return 0;
+}
+
+int tl_voice_build_args(const char *netlist, int single, const char *const *extra,
+                        const char *cflags, tl_voice *v) {
     memset(v, 0, sizeof *v);
     snprintf(v->dir, sizeof v->dir, "/tmp/wdc-test-XXXXXX");
     if (!mkdtemp(v->dir)) {
@@ -119,51 +165,28 @@ int tl_voice_build(const char *netlist, int single, tl_voice *v) {
         return -1;
     }
     track_dir(v->dir, 1);
-    const char *wdc = getenv("WDC");
-    if (!wdc || !*wdc)
-        wdc = "bin/wdc";
-    char *argv[8];
+    /* --precision float first, then the caller's arguments */
+    const char *args[TL_MAX_WDC_ARGS + 3];
     int n = 0;
-    argv[n++] = (char *)wdc;
-    argv[n++] = (char *)netlist;
-    argv[n++] = "-o";
-    argv[n++] = v->dir;
     if (single) {
-        argv[n++] = "--precision";
-        argv[n++] = "float";
+        args[n++] = "--precision";
+        args[n++] = "float";
     }
-    argv[n] = NULL;
-    int st = run_command(argv);
-    if (st != 0) {
-        fprintf(stderr, "testlib: %s %s -o %s%s: exit status %d\n", wdc, netlist,
-                v->dir, single ? " --precision float" : "", st);
+    for (int k = 0; extra && extra[k] && n <= TL_MAX_WDC_ARGS; k++)
+        args[n++] = extra[k];
+    args[n] = NULL;
+    if (tl_voice_make(netlist, v->dir, args, cflags) != 0 || tl_voice_load(v) != 0)
         return -1;
-    }
-    if (find_voice_source(v->dir, v->name, sizeof v->name) != 0) {
-        fprintf(stderr, "testlib: %s: expected one voice source in %s\n", netlist,
-                v->dir);
-        return -1;
-    }
-    char csrc[512], so[512];
-    snprintf(csrc, sizeof csrc, "%s/%s.c", v->dir, v->name);
-    snprintf(so, sizeof so, "%s/%s.so", v->dir, v->name);
-    wdrt_result r = wdrt_voice_compile(csrc, so, NULL, "-O2 -Wall -Wextra -pedantic");
-    if (r != WDRT_OK) {
-        fprintf(stderr, "testlib: compiling %s: %s\n", csrc, wdrt_result_str(r));
-        return -1;
-    }
-    r = wdrt_voice_open(so, v->name, &v->lib);
-    if (r != WDRT_OK) {
-        fprintf(stderr, "testlib: loading %s: %s\n", so, wdrt_result_str(r));
-        return -1;
-    }
-    v->cls = v->lib.cls;
     if (v->cls->precision != (single ? 32 : 64)) {
-        fprintf(stderr, "testlib: %s: precision %d, expected %d\n", so,
+        fprintf(stderr, "testlib: %s/%s.so: precision %d, expected %d\n", v->dir, v->name,
                 v->cls->precision, single ? 32 : 64);
         return -1;
     }
     return 0;
+}
+
+int tl_voice_build(const char *netlist, int single, tl_voice *v) {
+    return tl_voice_build_args(netlist, single, NULL, NULL, v);
 }
 
 void tl_voice_free(tl_voice *v) {
@@ -173,7 +196,7 @@ void tl_voice_free(tl_voice *v) {
     if (v->dir[0]) {
         track_dir(v->dir, 0);
         if (!keep_dirs())
-            remove_dir(v->dir);
+            tl_remove_dir(v->dir);
     }
     v->dir[0] = '\0';
 }
@@ -189,6 +212,56 @@ void *tl_state_new(const wdv_class *cls, double fs) {
 }
 
 void tl_state_free(void *state) { free(state); }
+
+int tl_output_id(const wdv_class *cls, const char *name) {
+    for (int k = 0; k < cls->n_outputs; k++)
+        if (strcmp(cls->outputs[k].name, name) == 0)
+            return k;
+    return -1;
+}
+
+int tl_param_id(const wdv_class *cls, const char *name) {
+    for (int k = 0; k < cls->n_params; k++)
+        if (strcmp(cls->params[k].name, name) == 0)
+            return k;
+    return -1;
+}
+
+/* ---- fixtures ---- */
+
+int tl_fixture_setup(void **state, const char *netlist, size_t data_size,
+                     int (*load)(void *data), void (*release)(void *data)) {
+    tl_fixture *fx = calloc(1, sizeof *fx);
+    if (!fx)
+        return -1;
+    fx->data = calloc(1, data_size ? data_size : 1);
+    if (!fx->data || load(fx->data) != 0) {
+        free(fx->data);
+        free(fx);
+        return -1;
+    }
+    fx->release = release;
+    if (tl_voice_build(netlist, 0, &fx->voice) != 0) {
+        *state = fx;
+        tl_fixture_teardown(state);
+        *state = NULL;
+        return -1;
+    }
+    *state = fx;
+    return 0;
+}
+
+int tl_fixture_teardown(void **state) {
+    tl_fixture *fx = *state;
+    if (fx) {
+        tl_voice_free(&fx->voice);
+        if (fx->release)
+            fx->release(fx->data);
+        free(fx->data);
+        free(fx);
+    }
+    return 0;
+}
 
 /* ---- random numbers ---- */
 
@@ -215,6 +288,13 @@ double tl_rng_uniform(tl_rng *r) {
 }
 
 double tl_rng_signed(tl_rng *r) { return 2.0 * tl_rng_uniform(r) - 1.0; }
+
+uint64_t tl_hash_str(const char *s) {
+    uint64_t h = 1469598103934665603ull;
+    for (; *s; s++)
+        h = (h ^ (unsigned char)*s) * 1099511628211ull;
+    return h;
+}
 
 /* ---- measures ---- */
 
@@ -313,9 +393,9 @@ int tl_random_changes(const Circuit *c, tl_rng *r, long nframes, int nchanges,
     return n;
 }
 
-/* ---- side by side ---- */
+/* ---- buffers ---- */
 
-static double **alloc_bufs(int n, long len) {
+double **tl_bufs_new(int n, long len) {
     double **b = calloc((size_t)n + 1, sizeof(double *));
     if (!b)
         return NULL;
@@ -331,13 +411,15 @@ static double **alloc_bufs(int n, long len) {
     return b;
 }
 
-static void free_bufs(double **b, int n) {
+void tl_bufs_free(double **b, int n) {
     if (!b)
         return;
     for (int k = 0; k < n; k++)
         free(b[k]);
     free(b);
 }
+
+/* ---- side by side ---- */
 
 static int check_ports(const Circuit *c, const wdv_class *cls) {
     int ok = 1;
@@ -383,11 +465,11 @@ int tl_run_side_by_side(const Circuit *c, const wdv_class *cls,
     r->nframes = N;
     r->nouts = nout;
     r->ninputs = nin;
-    r->voice = alloc_bufs(nout, N);
-    r->ref = alloc_bufs(nout, N);
+    r->voice = tl_bufs_new(nout, N);
+    r->ref = tl_bufs_new(nout, N);
     if (o->with_floor)
-        r->floor = alloc_bufs(nout, N);
-    r->in = alloc_bufs(nin, N);
+        r->floor = tl_bufs_new(nout, N);
+    r->in = tl_bufs_new(nin, N);
     void *st = tl_state_new(cls, o->fs);
     int linear = refsim_can_simulate(c);
     refsim *rs = linear ? refsim_new(c, o->fs, NULL) : NULL;
@@ -487,10 +569,10 @@ done:
 }
 
 void tl_run_free(tl_run *r) {
-    free_bufs(r->voice, r->nouts);
-    free_bufs(r->ref, r->nouts);
-    free_bufs(r->floor, r->nouts);
-    free_bufs(r->in, r->ninputs);
+    tl_bufs_free(r->voice, r->nouts);
+    tl_bufs_free(r->ref, r->nouts);
+    tl_bufs_free(r->floor, r->nouts);
+    tl_bufs_free(r->in, r->ninputs);
     free(r->venergy);
     free(r->vwork);
     free(r->renergy);
@@ -564,4 +646,144 @@ void tl_netlists_free(char **v, int n) {
     for (int k = 0; k < n; k++)
         free(v[k]);
     free(v);
+}
+
+static void test_netlists_present(void **state) {
+    int n = *(int *)*state;
+    assert_true(n > 0);
+}
+
+int tl_run_per_netlist(const char *group, void (*fn)(void **state),
+                       const struct CMUnitTest *fixed, size_t nfixed) {
+    int n = 0;
+    char **paths = tl_netlists(&n);
+    size_t first = 1 + nfixed;
+    struct CMUnitTest *tests = calloc(first + (size_t)n, sizeof *tests);
+    char **names = calloc((size_t)n + 1, sizeof *names);
+    int rc = 1;
+    if (!tests || !names)
+        goto out;
+    tests[0].name = "netlists_present";
+    tests[0].test_func = test_netlists_present;
+    tests[0].initial_state = &n;
+    for (size_t k = 0; k < nfixed; k++)
+        tests[1 + k] = fixed[k];
+    for (int k = 0; k < n; k++) {
+        names[k] = malloc(strlen(group) + strlen(paths[k]) + 2);
+        if (!names[k])
+            goto out;
+        sprintf(names[k], "%s %s", group, paths[k]);
+        tests[first + (size_t)k].name = names[k];
+        tests[first + (size_t)k].test_func = fn;
+        tests[first + (size_t)k].initial_state = paths[k];
+    }
+    rc = _cmocka_run_group_tests(group, tests, first + (size_t)n, NULL, NULL);
+out:
+    for (int k = 0; names && k < n; k++)
+        free(names[k]);
+    free(names);
+    free(tests);
+    tl_netlists_free(paths, n);
+    return rc;
+}
+
+/* ---- frequency responses ---- */
+
+double *tl_impulse_response(const wdv_class *cls, void *state, int oid, int block,
+                            double decay_floor, long max_frames, long *n) {
+    const long chunk = TL_IR_CHUNK;
+    int nout = cls->n_outputs;
+    long cap = 16 * chunk, len = 0;
+    double *h = malloc((size_t)cap * sizeof *h);
+    double *scratch = malloc((size_t)chunk * (size_t)nout * sizeof *scratch);
+    double **out = malloc((size_t)nout * sizeof *out);
+    double *imp = calloc((size_t)chunk, sizeof *imp);
+    const double **in = calloc((size_t)(cls->n_inputs > 0 ? cls->n_inputs : 1), sizeof *in);
+    if (!h || !scratch || !out || !imp || !in)
+        goto fail;
+    imp[0] = 1.0;
+    for (;;) {
+        if (len + chunk > cap) {
+            cap *= 2;
+            double *p = realloc(h, (size_t)cap * sizeof *h);
+            if (!p)
+                goto fail;
+            h = p;
+        }
+        for (int k = 0; k < nout; k++)
+            out[k] = (k == oid) ? h + len : scratch + (size_t)k * (size_t)chunk;
+        for (int k = 0; k < cls->n_inputs; k++)
+            in[k] = (len == 0) ? imp : NULL;
+        wdrt_render(cls, state, in, out, chunk, block);
+        double peak = 0;
+        for (long i = len; i < len + chunk; i++) {
+            if (!isfinite(h[i]))
+                goto fail;
+            if (fabs(h[i]) > peak)
+                peak = fabs(h[i]);
+        }
+        len += chunk;
+        if (len > chunk && peak < decay_floor)
+            break;
+        if (len >= max_frames)
+            goto fail;
+    }
+    free(scratch);
+    free(out);
+    free(imp);
+    free(in);
+    *n = len;
+    return h;
+fail:
+    free(h);
+    free(scratch);
+    free(out);
+    free(imp);
+    free(in);
+    return NULL;
+}
+
+double complex tl_dtft(const double *h, long n, double w) {
+    double complex acc = 0;
+    const double complex step = cexp(-I * w);
+    for (long k0 = 0; k0 < n; k0 += 256) {
+        long k1 = k0 + 256 < n ? k0 + 256 : n;
+        double complex z = cexp(-I * (w * (double)k0));
+        double complex part = 0;
+        for (long k = k0; k < k1; k++) {
+            part += h[k] * z;
+            z *= step;
+        }
+        acc += part;
+    }
+    return acc;
+}
+
+/* ---- reference data ---- */
+
+int tl_read_csv(const char *path, const char *header, const char *regen,
+                int (*row)(const char *line, const char *path, int lineno, void *ctx),
+                void *ctx) {
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "testlib: cannot open %s (run from the repository root; "
+                        "regenerate with %s)\n",
+                path, regen);
+        return -1;
+    }
+    int lineno = 0;
+    char line[512];
+    while (fgets(line, sizeof line, f)) {
+        lineno++;
+        if (lineno == 1 && header && strncmp(line, header, strlen(header)) == 0)
+            continue;
+        if (line[0] == '\n' || line[0] == '#')
+            continue;
+        if (row(line, path, lineno, ctx) != 0) {
+            fclose(f);
+            return -1;
+        }
+    }
+    fclose(f);
+    return 0;
 }

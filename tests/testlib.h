@@ -2,11 +2,13 @@
  * testlib.h - helpers shared by the cmocka tests.
  *
  * Building voices from netlists (through bin/wdc and the C compiler),
- * allocating their state, seeded random numbers, error measures, and a
+ * allocating their state, seeded random numbers, error measures, a
  * runner that drives a voice and the reference simulator (refsim.h) side
- * by side.  Tests run from the repository root; $WDC overrides the path
- * of the compiler (default bin/wdc), and $WDC_KEEP=1 keeps the temporary
- * build directories.
+ * by side, impulse and frequency responses, reference data files, and
+ * one cmocka test per netlist.  The benches (bench/) link it too.
+ * Tests run from the repository root; $WDC overrides the path of the
+ * compiler (default bin/wdc), and $WDC_KEEP=1 keeps the temporary build
+ * directories.
  */
 #ifndef TESTLIB_H
 #define TESTLIB_H
@@ -34,13 +36,42 @@ typedef struct tl_voice {
  * /tmp (`--precision float` when single), compiles it into a shared object
  * and loads it.  Returns 0, or -1 after printing what failed. */
 int tl_voice_build(const char *netlist, int single, tl_voice *v);
+/* The same, with the further arguments `extra` for bin/wdc (NULL-terminated,
+ * at most TL_MAX_WDC_ARGS; NULL: none) after `--precision float`, and the
+ * voice compiled with the C flags `cflags` (NULL: TL_VOICE_CFLAGS).  The
+ * precision is single's: `extra` may not name one. */
+int tl_voice_build_args(const char *netlist, int single, const char *const *extra,
+                        const char *cflags, tl_voice *v);
 /* Unloads the voice and removes its directory.  Directories of voices
  * never freed (a test that failed half-way) are removed at exit. */
 void tl_voice_free(tl_voice *v);
 
+/* The steps of tl_voice_build, for callers that make the directory
+ * themselves or load the voice in another process than the one that
+ * built it. */
+#define TL_VOICE_CFLAGS "-O2 -Wall -Wextra -pedantic"
+#define TL_MAX_WDC_ARGS 16
+/* Runs `bin/wdc NETLIST -o DIR EXTRA...` (wdrt_spawn) and compiles the one
+ * NAME.c it wrote into DIR/NAME.so with `cflags` (NULL: TL_VOICE_CFLAGS).
+ * Returns 0, or -1 after printing what failed. */
+int tl_voice_make(const char *netlist, const char *dir, const char *const *extra,
+                  const char *cflags);
+/* Loads the voice tl_voice_make made in v->dir into v (name, lib, cls).
+ * Returns 0, or -1 after printing what failed. */
+int tl_voice_load(tl_voice *v);
+/* The NAME of the one NAME.c in dir; returns 0, or -1 if there is not
+ * exactly one. */
+int tl_voice_name(const char *dir, char *name, size_t cap);
+/* Removes the files of dir, then dir. */
+void tl_remove_dir(const char *dir);
+
 /* A zeroed, 64-byte aligned state for cls, initialised at fs. */
 void *tl_state_new(const wdv_class *cls, double fs);
 void tl_state_free(void *state);
+
+/* Index of the output or param `name` of cls, or -1. */
+int tl_output_id(const wdv_class *cls, const char *name);
+int tl_param_id(const wdv_class *cls, const char *name);
 
 /* ---- random numbers (xorshift64*) ---- */
 
@@ -52,6 +83,8 @@ void tl_rng_seed(tl_rng *r, uint64_t seed);
 uint64_t tl_rng_next(tl_rng *r);
 double tl_rng_uniform(tl_rng *r); /* [0, 1) */
 double tl_rng_signed(tl_rng *r);  /* [-1, 1) */
+/* FNV-1a hash of a string: a seed that follows a name. */
+uint64_t tl_hash_str(const char *s);
 
 /* ---- measures ---- */
 
@@ -69,6 +102,62 @@ long tl_first_divergence(const double *a, const double *b, long n, double tol);
     tl_assert_buf_near_((a), (b), (n), (tol), __FILE__, __LINE__)
 void tl_assert_buf_near_(const double *a, const double *b, long n, double tol,
                          const char *file, int line);
+
+/* ---- buffers ---- */
+
+/* n zeroed buffers of len + 1 doubles (and a NULL after them), or NULL if
+ * memory runs out.  Free with tl_bufs_free(b, n). */
+double **tl_bufs_new(int n, long len);
+void tl_bufs_free(double **b, int n);
+
+/* ---- frequency responses ---- */
+
+/* Frames rendered at a time by tl_impulse_response. */
+#define TL_IR_CHUNK 4800L
+
+/* The response of output `oid` of an initialised instance (state) of cls
+ * to a unit impulse at sample 0 on every input, rendered (wdrt_render, in
+ * blocks of `block` frames) TL_IR_CHUNK frames at a time until a whole
+ * chunk after the first stays below `decay_floor`.  Returns the response
+ * (malloc'ed; its length in *n), or NULL if a sample is not finite, it has
+ * not decayed within max_frames, or memory runs out. */
+double *tl_impulse_response(const wdv_class *cls, void *state, int oid, int block,
+                            double decay_floor, long max_frames, long *n);
+/* sum_n h[n] e^{-j w n}; the phasor is recomputed exactly every 256
+ * samples so its rounding drift stays near 256 ulps. */
+double _Complex tl_dtft(const double *h, long n, double w);
+
+/* ---- reference data ---- */
+
+/* Reads the CSV file `path` (made by the command `regen`) line by line:
+ * a first line starting with `header` (the column names; NULL: none),
+ * empty lines and lines starting with '#' are skipped, and every other
+ * line (with its newline) goes to row(line, path, lineno, ctx), which
+ * returns 0, or -1 after printing what is wrong, which ends the reading.
+ * Returns 0, or -1 if the file cannot be opened (a message names `regen`)
+ * or row returned -1.  Lines longer than 510 characters are read in
+ * pieces. */
+int tl_read_csv(const char *path, const char *header, const char *regen,
+                int (*row)(const char *line, const char *path, int lineno, void *ctx),
+                void *ctx);
+
+/* A cmocka group fixture (state): reference data and the voice compared
+ * with it. */
+typedef struct tl_fixture {
+    tl_voice voice;
+    void *data;                  /* zeroed, then filled by load */
+    void (*release)(void *data); /* frees what load allocated, or NULL */
+} tl_fixture;
+
+/* Group setup: reads the data with load(data) into a zeroed block of
+ * data_size bytes (load returns 0, or -1 after printing why and freeing
+ * what it allocated), then builds the voice of netlist in double
+ * precision; *state gets the tl_fixture.  Returns 0, or -1 (everything
+ * released) if load fails or the voice cannot be built. */
+int tl_fixture_setup(void **state, const char *netlist, size_t data_size,
+                     int (*load)(void *data), void (*release)(void *data));
+/* Group teardown of tl_fixture_setup. */
+int tl_fixture_teardown(void **state);
 
 /* ---- input signals ---- */
 
@@ -169,5 +258,14 @@ void tl_run_report(const tl_run *r, const Circuit *c, int k, double tol);
  * tl_netlists_free. */
 char **tl_netlists(int *n);
 void tl_netlists_free(char **v, int n);
+
+struct CMUnitTest;
+/* Runs the cmocka group `group`: "netlists_present" (tl_netlists finds at
+ * least one), then the nfixed tests of `fixed` (NULL if none), then for
+ * each netlist of tl_netlists a test named "GROUP PATH" that runs fn with
+ * *state the netlist's path.  Returns the group's result (the number of
+ * failed tests), or 1 if memory runs out. */
+int tl_run_per_netlist(const char *group, void (*fn)(void **state),
+                       const struct CMUnitTest *fixed, size_t nfixed);
 
 #endif
