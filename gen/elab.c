@@ -119,11 +119,11 @@ static int node_of(Elab *E, Scope *S, const char *name, SrcPos pos, bool create)
 static Expr *resolve(Elab *E, Scope *S, Expr *e);
 
 static Expr *lookup_name(Elab *E, Scope *S, const char *name, SrcPos pos) {
-    for (Scope *s = S; s && s->def; s = NULL) {
-        Line *h = s->def->head;
+    if (S && S->def) { /* a param of the block being instantiated */
+        Line *h = S->def->head;
         for (int i = 0; i < h->nkv; i++)
             if (!strcmp(h->kv[i].key, name))
-                return s->bparam[i];
+                return S->bparam[i];
     }
     int p = find_param(E, name);
     if (p < 0) {

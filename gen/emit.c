@@ -383,46 +383,42 @@ static void emit_backward(Ctx *x, Buf *o) {
     }
 }
 
-/* voltage (n0 - n1) and current (n0 -> n1) of an element after the pass */
-static const char *elem_v(Ctx *x, int ei) {
-    const Elem *e = &x->c->elems[ei];
-    WNode *n = x->w->leaf_of[ei];
-    if (n) {
-        const char *b = x->bpost[n->id];
-        return is_zero(b) ? format("%s * t_a%d", lit(x, 0.5), n->id)
-                          : format("%s * (t_a%d + %s)", lit(x, 0.5), n->id, b);
-    }
-    for (int b = 0; b < x->w->nroots; b++)
-        for (int k = 0; k < x->w->roots[b].nedge; k++)
-            if (x->w->roots[b].edge[k].elem == ei) {
-                if (e->kind == E_NL) {
-                    int n = x->nl_first[b] + k - x->w->roots[b].nport;
-                    return format("%s * (t_an%d + t_bn%d)", lit(x, 0.5), n, n);
-                }
-                return e->kind == E_V ? drive_of(x, e) : format("t_r%d_%d", b, k);
-            }
+/* The root edge that holds element ei (an ideal source or the nonlinear
+ * element): its root and index. */
+static void root_edge_of(Ctx *x, int ei, int *rb, int *k) {
+    for (*rb = 0; *rb < x->w->nroots; ++*rb)
+        for (*k = 0; *k < x->w->roots[*rb].nedge; ++*k)
+            if (x->w->roots[*rb].edge[*k].elem == ei)
+                return;
     unreachable();
 }
 
-static const char *elem_i(Ctx *x, int ei) {
+/* voltage (n0 - n1) and current (n0 -> n1) of an element after the pass:
+ * from its waves, or for a root's source the drive and the root's output */
+static const char *elem_vi(Ctx *x, int ei, bool want_v) {
     const Elem *e = &x->c->elems[ei];
     WNode *n = x->w->leaf_of[ei];
+    const char *sum = want_v ? "+" : "-";
     if (n) {
         const char *b = x->bpost[n->id];
-        return is_zero(b) ? format("k_g%d * t_a%d", n->id, n->id)
-                          : format("k_g%d * (t_a%d - %s)", n->id, n->id, b);
+        const char *scale = want_v ? lit(x, 0.5) : format("k_g%d", n->id);
+        return is_zero(b) ? format("%s * t_a%d", scale, n->id)
+                          : format("%s * (t_a%d %s %s)", scale, n->id, sum, b);
     }
-    for (int b = 0; b < x->w->nroots; b++)
-        for (int k = 0; k < x->w->roots[b].nedge; k++)
-            if (x->w->roots[b].edge[k].elem == ei) {
-                if (e->kind == E_NL) {
-                    int n = x->nl_first[b] + k - x->w->roots[b].nport;
-                    return format("k_gn%d * (t_an%d - t_bn%d)", n, n, n);
-                }
-                return e->kind == E_I ? drive_of(x, e) : format("t_r%d_%d", b, k);
-            }
-    unreachable();
+    int rb, k;
+    root_edge_of(x, ei, &rb, &k);
+    if (e->kind == E_NL) {
+        int g = x->nl_first[rb] + k - x->w->roots[rb].nport;
+        return format("%s * (t_an%d %s t_bn%d)", want_v ? lit(x, 0.5) : format("k_gn%d", g), g, sum, g);
+    }
+    /* a V source's voltage and an I source's current are their drives */
+    if ((e->kind == E_V) == want_v)
+        return drive_of(x, e);
+    return format("t_r%d_%d", rb, k);
 }
+
+static const char *elem_v(Ctx *x, int ei) { return elem_vi(x, ei, true); }
+static const char *elem_i(Ctx *x, int ei) { return elem_vi(x, ei, false); }
 
 static const char *node_v(Ctx *x, int node) {
     if (node == 0)

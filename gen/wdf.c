@@ -225,10 +225,11 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne) {
         R[i] = r->edge[i].node->R;
     for (int i = r->nport; i < r->nport + r->nnl; i++)
         adapt_nonlinear(wd, r, i);
-    if (scatter_root(r, R, r->M) < 0 && r->nedge == r->nport + r->nnl)
+    bool singular = scatter_root(r, R, r->M) < 0;
+    if (singular && r->nedge == r->nport + r->nnl)
         error_at(c->elems[0].pos, "the network's equations are singular: its element values span too wide a "
                  "range to solve in double precision");
-    if (scatter_root(r, R, r->M) < 0) {
+    if (singular) {
         Vec names = {0};
         for (int i = r->nport + r->nnl; i < r->nedge; i++)
             vec_push(&names, (void *)c->elems[r->edge[i].elem].name);
