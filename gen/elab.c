@@ -55,6 +55,7 @@ typedef struct Elab {
     Vec names;     /* Elem names' first positions, parallel to elems */
     Vec incstack;  /* const char* resolved paths being included */
     Vec mutators;  /* Mutator* */
+    Vec wgs;       /* Waveguide* */
     int *node_deg;
     bool have_voice, have_domain, have_rate;
     SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
@@ -639,6 +640,222 @@ static NlSpec *nonlinear(Elab *E, Scope *S, Line *l) {
     return nl;
 }
 
+
+/* ---- waveguides ---- */
+
+/* One value of a token list (taps=h@0.12,p@{pos}). */
+static Value token_value(const Token *t) {
+    Value v = {.pos = t->pos};
+    if (t->kind == TK_NUMBER) {
+        v.kind = VAL_EXPR;
+        v.expr = expr_num(t->num, t->pos);
+    } else if (t->kind == TK_LBRACE) {
+        v.kind = VAL_EXPR;
+        v.expr = parse_expr_text(t);
+    } else if (t->kind == TK_IDENT) {
+        v.kind = VAL_NAME;
+        v.name = arena_strndup(t->text, (size_t)t->len);
+    } else {
+        error_at(t->pos, "expected a number, a param or {expression}, found '%.*s'", t->len, t->text);
+    }
+    return v;
+}
+
+static bool is_tok(const Token *t, char c) { return t->len == 1 && t->text[0] == c && t->kind != TK_IDENT; }
+
+/* Lowest value of e over the params' ranges (each param alone at its
+ * bounds, and the defaults); every param it depends on needs finite
+ * bounds. */
+static double expr_min(Elab *E, Expr *e, SrcPos pos, const char *what) {
+    Circuit *c = E->c;
+    double *p = arena_alloc(sizeof(double) * (size_t)(E->params.len + 1));
+    for (int j = 0; j < E->params.len; j++)
+        p[j] = ((Param *)E->params.data[j])->def;
+    double m = expr_eval(e, p);
+    (void)c;
+    for (int j = 0; j < E->params.len && j < 64; j++) {
+        if (!(expr_params(e) >> j & 1))
+            continue;
+        Param *pr = E->params.data[j];
+        if (!isfinite(pr->min) || !isfinite(pr->max))
+            error_at(pos, "%s depends on param '%s', which needs min= and max= (they size the delay lines)", what,
+                     pr->name);
+        for (int s = 0; s < 2; s++) {
+            double save = p[j];
+            p[j] = s ? pr->max : pr->min;
+            double v = expr_eval(e, p);
+            m = v < m || v != v ? v : m;
+            p[j] = save;
+        }
+    }
+    return m;
+}
+
+static Expr *mul(Expr *a, Expr *b) { return expr_bin(EX_MUL, a, b); }
+static Expr *num(double v, SrcPos pos) { return expr_num(v, pos); }
+
+/* string S a b L= f0= [mu=|T=] [t60= t60hf= fhf=] [B=] [taps=...]
+ * tube W a b L= r= [t60=] [ends=open|closed[,open|closed]] [c=] [rho=] */
+static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
+    bool tube = l->kind == BK_TUBE;
+    Waveguide *w = arena_alloc(sizeof(Waveguide));
+    w->name = format("%s%s", S->prefix, l->name);
+    w->tube = tube;
+    w->pos = l->namepos;
+    w->end[0] = node[0];
+    w->end[1] = node[1];
+    w->nu1 = 1;
+    SrcPos pos = l->namepos;
+    Expr *L = need_key(E, S, l, "L");
+    double Ld = expr_eval(L, NULL);
+    if (expr_params(L) || !(Ld > 0) || !isfinite(Ld))
+        error_at(key(l, "L")->val.pos, "L must be a positive number of metres");
+    if (!tube) {
+        w->term[0] = w->term[1] = 'r';
+        w->f0 = need_key(E, S, l, "f0");
+        w->B = key_or(E, S, l, "B", 0);
+        KeyVal *mu = key(l, "mu"), *T = key(l, "T");
+        if (mu && T)
+            error_at(T->pos, "string '%s': give mu= or T=, not both (f0 and L fix the other)", l->name);
+        /* c = 2 L f0 / sqrt(1 + B); Z = mu c or T / c; the port is 1 / Z */
+        Expr *cw = expr_bin(EX_DIV, mul(num(2 * Ld, pos), w->f0),
+                            expr_call(FN_SQRT, expr_bin(EX_ADD, num(1, pos), w->B), NULL));
+        Expr *Z = T ? expr_bin(EX_DIV, value_expr(E, S, &T->val, "T"), cw)
+                    : mul(mu ? value_expr(E, S, &mu->val, "mu") : num(1e-3, pos), cw);
+        w->Rp = expr_bin(EX_DIV, num(1, pos), Z);
+    } else {
+        Expr *r = need_key(E, S, l, "r");
+        double rd = expr_eval(r, NULL), cs = 343.2, rho = 1.204;
+        if (expr_params(r) || !(rd > 0) || !isfinite(rd))
+            error_at(key(l, "r")->val.pos, "r must be a positive number of metres");
+        KeyVal *ck = key(l, "c"), *rk = key(l, "rho");
+        if (ck)
+            cs = const_number(&ck->val, "c=");
+        if (rk)
+            rho = const_number(&rk->val, "rho=");
+        if (!(cs > 0) || !(rho > 0))
+            error_at(ck && !(cs > 0) ? ck->val.pos : rk->val.pos, "c and rho must be positive");
+        w->term[0] = w->term[1] = 'o';
+        KeyVal *ek = key(l, "ends");
+        if (ek) {
+            int n = 0;
+            const Token *t = ek->val.kind == VAL_LIST ? ek->val.toks : NULL;
+            int nt = ek->val.kind == VAL_LIST ? ek->val.ntoks : 0;
+            const char *one = ek->val.kind == VAL_NAME ? ek->val.name : NULL;
+            for (int i = 0; one ? i < 1 : i < nt; i += 2) {
+                const char *v = one ? one : t[i].kind == TK_IDENT ? arena_strndup(t[i].text, (size_t)t[i].len) : "";
+                SrcPos vp = one ? ek->val.pos : t[i].pos;
+                if (!one && i + 1 < nt && t[i + 1].kind != TK_COMMA)
+                    error_at(t[i + 1].pos, "ends= takes open or closed, or two of them separated by a comma");
+                if (n >= 2 || (strcmp(v, "open") && strcmp(v, "closed")))
+                    error_at(vp, "ends= takes open or closed, or two of them separated by a comma");
+                w->term[n++] = v[0];
+            }
+            if (n == 1)
+                w->term[1] = w->term[0];
+        }
+        /* end corrections of open ends (unflanged: 0.6133 r) */
+        double Leff = Ld;
+        for (int k = 0; k < 2; k++)
+            if (!node[k] && w->term[k] == 'o') {
+                Leff += 0.6133 * rd;
+                w->rad = num(rd / cs, pos);
+            }
+        bool closed = (!node[0] && w->term[0] == 'c'), open = (!node[0] && w->term[0] == 'o');
+        closed |= !node[1] && w->term[1] == 'c';
+        open |= !node[1] && w->term[1] == 'o';
+        if (closed && open)
+            w->nu1 = 0.5;
+        w->f0 = num(cs / (2 * Leff), pos);
+        w->B = num(0, pos);
+        w->Rp = num(rho * cs / (3.14159265358979323846 * rd * rd), pos);
+        /* wall losses (boundary layers): alpha = 3e-5 sqrt(f) / r nepers a
+         * metre, so t60 = 3 ln 10 / (alpha c) */
+        if (!key(l, "t60")) {
+            double f1 = cs / (2 * Leff) * w->nu1, fh = 5000;
+            w->t60 = num(3 * log(10) / (3e-5 * sqrt(f1) / rd * cs), pos);
+            w->t60hf = num(3 * log(10) / (3e-5 * sqrt(fh) / rd * cs), pos);
+            w->fhf = num(fh, pos);
+        }
+    }
+    if (key(l, "t60")) {
+        w->t60 = need_key(E, S, l, "t60");
+        w->t60hf = key(l, "t60hf") ? need_key(E, S, l, "t60hf") : NULL;
+        w->fhf = key_or(E, S, l, "fhf", 5000);
+    } else if (key(l, "t60hf")) {
+        error_at(key(l, "t60hf")->pos, "t60hf= needs t60= too");
+    }
+    if (!w->fhf)
+        w->fhf = num(5000, pos);
+    w->f0_min = expr_min(E, w->f0, pos, "f0");
+    if (!(w->f0_min >= 1) || !isfinite(w->f0_min))
+        error_at(tube ? pos : key(l, "f0")->val.pos, "%s '%s' has a first resonance of %g Hz; it must be at "
+                 "least 1 Hz", tube ? "tube" : "string", l->name, w->f0_min * w->nu1);
+    /* taps */
+    Vec tn = {0}, tp = {0};
+    KeyVal *tk = key(l, "taps");
+    if (tk) {
+        const Token *t = tk->val.kind == VAL_LIST ? tk->val.toks : NULL;
+        int nt = t ? tk->val.ntoks : 0;
+        if (!t)
+            error_at(tk->val.pos, "taps= takes a list NODE@FRACTION,NODE@FRACTION,...");
+        for (int i = 0; i < nt; i += 4) {
+            if (t[i].kind != TK_IDENT || i + 2 >= nt || !is_tok(&t[i + 1], '@'))
+                error_at(t[i].pos, "expected NODE@FRACTION in taps=");
+            if (i + 3 < nt && t[i + 3].kind != TK_COMMA)
+                error_at(t[i + 3].pos, "expected ',' between taps");
+            const char *nm = arena_strndup(t[i].text, (size_t)t[i].len);
+            int nd = node_of(E, S, nm, t[i].pos, true);
+            if (nd == 0)
+                error_at(t[i].pos, "a tap cannot be on ground (node 0)");
+            if (nd == node[0] || nd == node[1])
+                error_at(t[i].pos, "tap '%s' is also an end of %s '%s'", nm, tube ? "tube" : "string", l->name);
+            for (int j = 0; j < tn.len; j++)
+                if (*(int *)tn.data[j] == nd)
+                    error_at(t[i].pos, "tap '%s' is given twice", nm);
+            Value v = token_value(&t[i + 2]);
+            Expr *x = value_expr(E, S, &v, "a tap position");
+            double *p = circuit_defaults(E->c);
+            (void)p;
+            int *pn = arena_alloc(sizeof(int));
+            *pn = nd;
+            vec_push(&tn, pn);
+            vec_push(&tp, x);
+        }
+    }
+    w->ntaps = tn.len;
+    w->tap_node = arena_alloc(sizeof(int) * (size_t)(tn.len + 1));
+    w->tap_pos = arena_alloc(sizeof(Expr *) * (size_t)(tn.len + 1));
+    for (int j = 0; j < tn.len; j++) {
+        w->tap_node[j] = *(int *)tn.data[j];
+        w->tap_pos[j] = tp.data[j];
+    }
+    if (node[0] && node[0] == node[1])
+        error_at(l->args[1].pos, "%s '%s' has both ends on one node", tube ? "tube" : "string", l->name);
+    if (!node[0] && !node[1] && !w->ntaps)
+        error_at(l->namepos, "%s '%s' joins nothing: put an end on a node or give it taps=", tube ? "tube" : "string",
+                 l->name);
+    int wi = E->wgs.len;
+    vec_push(&E->wgs, w);
+    /* ports: end a (faces b), taps (both sides), end b (faces a) */
+    for (int pt = 0; pt <= w->ntaps + 1; pt++) {
+        int nd = pt == 0 ? node[0] : pt == w->ntaps + 1 ? node[1] : w->tap_node[pt - 1];
+        if (!nd)
+            continue;
+        for (int side = 0; side < 2; side++) {
+            if ((pt == 0 && side == 0) || (pt == w->ntaps + 1 && side == 1))
+                continue;
+            const char *suffix = pt == 0 ? ".a" : pt == w->ntaps + 1 ? ".b"
+                                 : format(".%s.%c", ((const char **)E->nodes.data)[nd], side ? 'r' : 'l');
+            Elem *e = add_elem(E, S, l, E_S, suffix, nd, 0);
+            e->val = w->Rp;
+            e->wg = wi;
+            e->pt = pt;
+            e->side = side;
+        }
+    }
+}
+
 static void instantiate(Elab *E, Scope *S, Line *l);
 
 static void element(Elab *E, Scope *S, Line *l) {
@@ -742,6 +959,9 @@ static void element(Elab *E, Scope *S, Line *l) {
                      "port on one node", l->name);
         return;
     }
+    case BK_STRING: case BK_TUBE:
+        waveguide(E, S, l, node);
+        return;
     case BK_POT: {
         Expr *R = need_key(E, S, l, "R"), *pos = need_key(E, S, l, "pos");
         KeyVal *tk = key(l, "taper");
@@ -1094,6 +1314,7 @@ static void finish(Elab *E) {
     COPY(params, params, nparams, Param)
     COPY(outs, outs, nouts, Probe)
     COPY(ics, ics, nics, IcSpec)
+    COPY(wgs, wgs, nwgs, Waveguide)
 #undef COPY
     c->nnodes = E->nodes.len;
     c->nodes = (const char **)E->nodes.data;
@@ -1146,6 +1367,7 @@ static Circuit *elaborate(SrcFile *f) {
     finish(&E);
     check_graph(&E);
     check_values(&E);
+    wg_choose(c);
     return c;
 }
 

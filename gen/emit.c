@@ -11,7 +11,7 @@
 #include "gen.h"
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
-    tmpl_nl_pwl[], tmpl_nl_contact[], tmpl_nl_memory[];
+    tmpl_nl_pwl[], tmpl_nl_contact[], tmpl_nl_memory[], tmpl_waveguide[], tmpl_waveguide_state[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
 static const char *mem_args(int k, const NlSpec *nl) {
@@ -77,6 +77,19 @@ typedef struct Ctx {
     int *pwl_off;    /* nonlinear index -> first point of its table */
     int *pwl_n;      /* nonlinear index -> points in its table, 0: none */
     double **pwl_v, **pwl_i; /* Kirchhoff points of each table */
+    /* waveguides */
+    int *wv_off;     /* waveguide -> offset of its right-going line in s_wv (the left one follows) */
+    int *wv_size;    /* waveguide -> length of each line (a power of two) */
+    int nwv;         /* entries of s_wv */
+    int *wf_off;     /* waveguide -> its first filter state */
+    int *wf_nrad;    /* waveguide -> open ends (radiation filters) */
+    int nwf;
+    int *wt_off;     /* waveguide -> its first tap in c_wk */
+    int nwt;
+    int *sp_of;      /* element (E_S) -> its index in s_wpre, or -1 */
+    int nsp;
+    int *wtap_port;  /* tap -> ports facing a and b (2 each) */
+    int *wend_port;  /* waveguide -> ports of end a and end b (-1: terminated) */
 } Ctx;
 
 static const char *lit(Ctx *x, double v) {
@@ -190,6 +203,25 @@ static void emit_update(Ctx *x, Buf *o) {
                     "        st->c_D[%d] = (unsigned)(t_d < 1 ? 1 : t_d > %d ? %d : t_d);\n    }\n",
                  e->name, e->td, x->line_of[i], x->dl_size[x->line_of[i]] - 1, x->dl_size[x->line_of[i]] - 1);
     }
+    for (int w = 0; w < c->nwgs; w++) {
+        const Waveguide *g = &c->wgs[w];
+        uint64_t mask = expr_params(g->f0) | expr_params(g->Rp) | (g->B ? expr_params(g->B) : 0) |
+                        (g->t60 ? expr_params(g->t60) : 0) | (g->t60hf ? expr_params(g->t60hf) : 0) |
+                        (g->fhf ? expr_params(g->fhf) : 0);
+        Buf xs = {0};
+        for (int j = 0; j < g->ntaps; j++) {
+            mask |= expr_params(g->tap_pos[j]);
+            emit(&xs, "%s%s", j ? ", " : "", cexpr(x, g->tap_pos[j]));
+        }
+        int nrad = x->wf_nrad[w];
+        emit(o, "    %s { /* %s (%s:%d:%d) */\n", guard(mask), g->name, g->pos.file->path, g->pos.line, g->pos.col);
+        emit(o, "        const wg_spec sp = {st->fs, fmax(%s, %.17g), %s, %s, %s, %s, %.17g, %.17g, %d, %d, %d};\n",
+             cexpr(x, g->f0), g->f0_min, g->B ? cexpr(x, g->B) : "0.0", g->t60 ? cexpr(x, g->t60) : "0.0",
+             g->t60hf ? cexpr(x, g->t60hf) : "0.0", g->fhf ? cexpr(x, g->fhf) : "5000.0", g->nu1,
+             g->rad ? expr_eval(g->rad, NULL) : 0.0, nrad, g->M, g->ntaps ? 4 : 2);
+        emit(o, "        const double x[] = {%s};\n        wg_retune(st, %d, &sp, pos(%s), x);\n    }\n",
+             g->ntaps ? str(&xs) : "0.0", w, cexpr(x, g->Rp));
+    }
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (x->src[i] >= 0 && e->input < 0)
@@ -200,8 +232,43 @@ static void emit_update(Ctx *x, Buf *o) {
 
 /* ---- the sample loop ---- */
 
+/* Each waveguide's right-going wave meets end b through the loop filters;
+ * terminated ends reflect. */
+static void emit_waveguides(Ctx *x, Buf *o) {
+    for (int w = 0; w < x->c->nwgs; w++) {
+        const Waveguide *g = &x->c->wgs[w];
+        int m = x->wv_size[w] - 1, R = x->wv_off[w], L = R + x->wv_size[w], f = x->wf_off[w];
+        emit(o, "        /* %s: the right-going wave meets end b through the loop filters */\n", g->name);
+        emit(o, "        real t_wb%d;\n        {\n", w);
+        emit(o, "            real t_x = s_wv[%d + ((t_pos - k_wNR%d) & %du)], t_y;\n", R, w, m);
+        emit(o, "            t_y = k_wlb%d * t_x - k_wla%d * s_wf%d;\n            s_wq%d = s_wf%d;\n            s_wf%d = t_y;\n"
+                "            t_x = t_y;\n", w, w, f, f, f, f);
+        int j = f + 1;
+        for (int k = 0; k < x->wf_nrad[w]; k++, j++)
+            emit(o, "            t_y = (1 + k_wra%d) * t_x - k_wra%d * s_wf%d;\n            s_wq%d = s_wf%d;\n"
+                    "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
+        for (int k = 0; k <= g->M; k++, j++) {
+            const char *a = k < g->M ? format("k_wda%d", w) : format("k_wta%d", w);
+            emit(o, "            t_y = %s * t_x + s_wf%d;\n            s_wq%d = s_wf%d;\n            s_wf%d = t_x - %s * t_y;\n"
+                    "            t_x = t_y;\n", a, j, j, j, j, a);
+        }
+        emit(o, "            t_wb%d = t_x;\n        }\n", w);
+        for (int e = 0; e < 2; e++) {
+            if (g->end[e])
+                continue;
+            const char *sg = g->term[e] == 'c' ? "" : "-";
+            if (e == 0)
+                emit(o, "        s_wv[%d + (t_pos & %du)] = flush(%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]); /* end a */\n",
+                     R, m, sg, L, w, m);
+            else
+                emit(o, "        s_wv[%d + (t_pos & %du)] = flush(%st_wb%d); /* end b */\n", L, m, sg, w);
+        }
+    }
+}
+
 static void emit_forward(Ctx *x, Buf *o) {
     const Circuit *c = x->c;
+    emit_waveguides(x, o);
     emit(o, "        /* forward: waves reflected towards the root */\n");
     for (int i = 0; i < x->w->nnodes; i++) {
         const WNode *n = x->w->nodes[i];
@@ -223,6 +290,20 @@ static void emit_forward(Ctx *x, Buf *o) {
                 int k = x->line_of[n->elem];
                 emit(o, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
                      x->dl_off[e->peer], k, x->dl_size[k] - 1, e->name);
+                x->b[i] = format("t_b%d", i);
+                break;
+            }
+            case E_S: {
+                int w = e->wg, m = x->wv_size[w] - 1;
+                const Waveguide *g = &x->c->wgs[w];
+                if (e->side == 0)
+                    emit(o, "        const real t_b%d = %s; /* %s */\n", i, e->pt == g->ntaps + 1 ? format("t_wb%d", w)
+                         : format("s_wv[%d + ((t_pos - k_wk%d) & %du)]", x->wv_off[w], x->wt_off[w] + e->pt - 1, m), e->name);
+                else
+                    emit(o, "        const real t_b%d = s_wv[%d + ((t_pos - %s) & %du)]; /* %s */\n", i,
+                         x->wv_off[w] + x->wv_size[w], e->pt == 0 ? format("k_wNL%d", w)
+                         : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m, e->name);
+                emit(o, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
                 x->b[i] = format("t_b%d", i);
                 break;
             }
@@ -355,6 +436,16 @@ static void emit_backward(Ctx *x, Buf *o) {
             } else if (e->kind == E_W) {
                 emit(o, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
                      x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
+            } else if (e->kind == E_S) {
+                int w = e->wg, m = x->wv_size[w] - 1, tap = x->wt_off[w] + e->pt - 1;
+                const Waveguide *g = &x->c->wgs[w];
+                const char *d;
+                if (e->side == 0) /* writes the left-going line */
+                    d = e->pt == g->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
+                else
+                    d = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
+                emit(o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
+                     x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, a, e->name);
             } else {
                 emit(o, "        (void)%s; /* %s */\n", a, e->name);
             }
@@ -486,11 +577,32 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
     emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
     emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
     emit(wb, "    st->s_work = s_work;\n");
-    if (x->nline) {
-        emit(o, "    unsigned t_pos = st->s_pos;\n    real *const s_dl = st->s_dl;\n");
+    if (x->nline || c->nwgs) {
+        emit(o, "    unsigned t_pos = st->s_pos;\n    real *const s_dl = st->s_dl;\n    real *const s_wv = st->s_wv;\n");
+        emit(o, "    (void)s_dl;\n    (void)s_wv;\n");
         for (int k = 0; k < x->nline; k++)
             emit(o, "    const unsigned k_D%d = st->c_D[%d];\n", k, k);
         emit(wb, "    st->s_pos = t_pos;\n");
+    }
+    for (int w = 0; w < c->nwgs; w++) {
+        emit(o, "    const unsigned k_wNR%d = st->c_wN[%d], k_wNL%d = st->c_wN[%d];\n    (void)k_wNL%d;\n", w, 2 * w, w,
+             2 * w + 1, w);
+        static const char *cf[] = {"lb", "la", "ra", "da", "ta"};
+        for (int j = 0; j < 5; j++)
+            emit(o, "    const real k_w%s%d = st->c_wf[%d];\n    (void)k_w%s%d;\n", cf[j], w, 5 * w + j, cf[j], w);
+        for (int j = 0; j < c->wgs[w].ntaps; j++) {
+            int t = x->wt_off[w] + j;
+            emit(o, "    const unsigned k_wk%d = st->c_wk[%d];\n", t, t);
+        }
+    }
+    for (int f = 0; f < x->nwf; f++) {
+        emit(o, "    real s_wf%d = st->s_wf[%d], s_wq%d = st->s_wfp[%d];\n", f, f, f, f);
+        emit(wb, "    st->s_wf[%d] = s_wf%d;\n    st->s_wfp[%d] = s_wq%d;\n", f, f, f, f);
+        emit(fl, "        s_wf%d = flush(s_wf%d);\n        s_wq%d = flush(s_wq%d);\n", f, f, f, f);
+    }
+    for (int k = 0; k < x->nsp; k++) {
+        emit(o, "    real s_wpre%d = st->s_wpre[%d];\n", k, k);
+        emit(wb, "    st->s_wpre[%d] = s_wpre%d;\n", k, k);
     }
     emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
     for (int k = 0; k < x->nnl; k++) {
@@ -589,10 +701,15 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
              p->n[0] ? format("x[%d]", p->n[0] - 1) : "0", p->n[1] ? format("x[%d]", p->n[1] - 1) : "0");
         xp++;
     }
+    if (c->nwgs)
+        emit(o, "    memset(st->s_wv, 0, sizeof st->s_wv);\n    memset(st->s_wf, 0, sizeof st->s_wf);\n"
+                "    memset(st->s_wfp, 0, sizeof st->s_wfp);\n    memset(st->s_wpre, 0, sizeof st->s_wpre);\n");
     emit(o, "    settle(st, react);\n");
 }
 
 static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
+    for (int w = 0; w < x->c->nwgs; w++)
+        emit(o, "    E += wg_energy(st, %d); /* %s */\n", w, x->c->wgs[w].name);
     for (int i = 0; i < x->c->nelems; i++) {
         const Elem *e = &x->c->elems[i];
         if (e->kind != E_W)
@@ -819,6 +936,7 @@ static const char *ic_table(Ctx *x, int *nv) {
         case E_I: kind = e->val ? 6 : 4; break;
         case E_NL: kind = e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? 8 : 7; break;
         case E_W: kind = 0; break; /* an empty line looks like its Z0 */
+        case E_S: kind = 9; break; /* its last incoming wave behind its port resistance */
         default: unreachable();
         }
         *nv += kind == 1 || kind == 3;
@@ -827,7 +945,7 @@ static const char *ic_table(Ctx *x, int *nv) {
             if (nl_elem(x, k) == e)
                 nli = k;
         emit(&b, "%s{%d, %d, %d, %d, %d, %d}", i ? ", " : "", kind, e->n[0], e->n[1], n ? n->id : -1,
-             n ? x->react[n->id] : nli, x->src[i]);
+             e->kind == E_S ? x->sp_of[i] : n ? x->react[n->id] : nli, x->src[i]);
     }
     emit(&b, "}");
     return str(&b);
@@ -863,12 +981,23 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s s_dl[%d];    /* transmission lines: the waves that entered each end */\n"
         "    unsigned s_pos;        /* transmission lines: next write position */\n"
         "    unsigned c_D[%d];      /* transmission lines: delay in samples */\n"
+        "    %s s_wv[%d];    /* waveguides: right- and left-going lines */\n"
+        "    unsigned c_wN[%d];     /* waveguides: whole samples of each line */\n"
+        "    unsigned c_wk[%d];     /* waveguide taps: samples from end a */\n"
+        "    double c_wR[%d];       /* waveguides: port resistance */\n"
+        "    %s c_wf[%d];    /* waveguides: loss b and a, radiation, dispersion and tuning allpass coefficients */\n"
+        "    double c_ww[%d];       /* waveguides: storage weights of their filters */\n"
+        "    %s s_wf[%d];    /* waveguide filters: states */\n"
+        "    %s s_wfp[%d];   /* waveguide filters: states a sample earlier */\n"
+        "    %s s_wpre[%d];  /* waveguide ports: the wave that last arrived */\n"
         "    double w_A[%d];        /* solve workspace (control rate only) */\n"
         "    double w_x[%d];\n"
         "    int w_piv[%d];",
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
-        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline), nd * nd, nd, nd);
+        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
+        r, M1(x->nwv), M1(2 * c->nwgs), M1(x->nwt), M1(c->nwgs), r, M1(5 * c->nwgs), M1(4 * c->nwgs), r, M1(x->nwf),
+        r, M1(x->nwf), r, M1(x->nsp), nd * nd, nd, nd);
 #undef M1
 }
 
@@ -1007,6 +1136,49 @@ static void index_tree(Ctx *x) {
         x->dl_off[i] = x->ndl;
         x->ndl += x->dl_size[x->line_of[i]];
     }
+    /* waveguides: two lines each, long enough for the lowest f0 at 192 kHz
+     * or four times the netlist's rate */
+    int nw = c->nwgs;
+    x->wv_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
+    x->wv_size = arena_alloc(sizeof(int) * (size_t)(nw + 1));
+    x->wf_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
+    x->wf_nrad = arena_alloc(sizeof(int) * (size_t)(nw + 1));
+    x->wt_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
+    x->wend_port = arena_alloc(sizeof(int) * (size_t)(2 * nw + 1));
+    for (int w = 0; w < nw; w++) {
+        const Waveguide *g = &c->wgs[w];
+        double fmax = c->rate * 4 > 192000 ? c->rate * 4 : 192000;
+        int need = (int)ceil(fmax / g->f0_min / 2) + 4, size = 4;
+        while (size < need)
+            size *= 2;
+        x->wv_off[w] = x->nwv;
+        x->wv_size[w] = size;
+        x->nwv += 2 * size;
+        x->wf_nrad[w] = 0;
+        for (int k = 0; k < 2; k++)
+            x->wf_nrad[w] += g->tube && !g->end[k] && g->term[k] == 'o';
+        x->wf_off[w] = x->nwf;
+        x->nwf += 2 + x->wf_nrad[w] + g->M;
+        x->wt_off[w] = x->nwt;
+        x->nwt += g->ntaps;
+        x->wend_port[2 * w] = x->wend_port[2 * w + 1] = -1;
+    }
+    x->sp_of = arena_alloc(sizeof(int) * (size_t)(c->nelems + 1));
+    x->wtap_port = arena_alloc(sizeof(int) * (size_t)(2 * x->nwt + 2));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        x->sp_of[i] = -1;
+        if (e->kind != E_S)
+            continue;
+        x->sp_of[i] = x->nsp++;
+        const Waveguide *g = &c->wgs[e->wg];
+        if (e->pt == 0)
+            x->wend_port[2 * e->wg] = x->sp_of[i];
+        else if (e->pt == g->ntaps + 1)
+            x->wend_port[2 * e->wg + 1] = x->sp_of[i];
+        else
+            x->wtap_port[2 * (x->wt_off[e->wg] + e->pt - 1) + e->side] = x->sp_of[i];
+    }
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
     for (int i = 0; i < c->nelems; i++)
         x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
@@ -1027,14 +1199,24 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     emit_backward(&x, &sample);
     emit_outputs(&x, &sample);
     emit_work(&x, &sample);
-    if (x.nline)
+    if (x.nline || c->nwgs)
         emit(&sample, "        t_pos++;\n");
     emit_hoist(&x, &hoist, &wb, &flushes);
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);
     emit_ic_cases(&x, &targets, &cases);
-    Buf kernels = {0}, tables = {0}, retune = {0}, force = {0};
+    Buf kernels = {0}, tables = {0}, retune = {0}, force = {0}, wgk = {0};
     emit_nonlinear(&x, &kernels, &tables, &retune, &force);
+    if (c->nwgs) {
+        emit(&wgk, "%s\nstatic const int wg_tab[][8] = {", tmpl_waveguide);
+        for (int w = 0; w < c->nwgs; w++)
+            emit(&wgk, "%s{%d, %d, %d, %d, %d, %d, %d, %d}", w ? ", " : "", x.wv_off[w], x.wv_off[w] + x.wv_size[w],
+                 x.wv_size[w] - 1, x.wf_off[w], x.wf_nrad[w], c->wgs[w].M, x.wt_off[w], c->wgs[w].ntaps);
+        emit(&wgk, "};\nstatic const int wg_tap[][2] = {");
+        for (int t = 0; t < x.nwt; t++)
+            emit(&wgk, "%s{%d, %d}", t ? ", " : "", x.wtap_port[2 * t], x.wtap_port[2 * t + 1]);
+        emit(&wgk, "%s};\n%s", x.nwt ? "" : "{-1, -1}", tmpl_waveguide_state);
+    }
     int nicv;
     const char *ictab = ic_table(&x, &nicv);
     int ncore = 0, nicn = c->nnodes - 1 + nicv, nports = 0, nsrcs = 0;
@@ -1070,7 +1252,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         {"writeback", str(&wb)}, {"precision", opt->single ? "32" : "64"},
         {"n_inputs", format("%d", c->ninputs)}, {"n_outputs", format("%d", c->nouts)},
         {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"nl_retune", str(&retune)},
-        {"nl_force", str(&force)}, {"flush", str(&flushes)},
+        {"nl_force", str(&force)}, {"flush", str(&flushes)}, {"wg_kernels", str(&wgk)},
         {"flush_below", opt->single ? "1e-18f" : "1e-30"},
     };
     int nh = (int)(sizeof holes / sizeof holes[0]);

@@ -262,6 +262,8 @@ typedef enum {
     E_NL, /* nonlinear one-port (diode, curve, contact): see NlSpec */
     E_W,  /* one end of a lossless line: val = Z0; reflects the wave that
              entered the other end `peer` td seconds earlier */
+    E_S,  /* one side of a point of a waveguide (string, tube) from node n0
+             to ground: val = its port resistance; see Waveguide */
 } ElemKind;
 
 typedef enum {
@@ -302,9 +304,37 @@ typedef struct Elem {
     NlSpec *nl;        /* E_NL: the nonlinearity */
     int peer;          /* E_W: element of the line's other end */
     double td;         /* E_W: delay of the line, s */
+    int wg, pt, side;  /* E_S: waveguide, its point (0: end a, 1..ntaps:
+                          taps, ntaps+1: end b), side (0 faces end a, 1 b) */
     SrcPos pos;
     int user_kind;     /* BlockKind it came from */
 } Elem;
+
+/* A waveguide: a string (velocity and force, mobility analogy) or a
+ * tube (pressure and volume flow) from end a to end b, with taps between.
+ * It is two delay lines, one per direction, with the loop's loss,
+ * dispersion and fine-tuning filters lumped where the right-going wave
+ * meets end b.  Points joined to the network are ports to ground (E_S
+ * elements); a terminated end reflects. */
+typedef struct Waveguide {
+    const char *name;
+    bool tube;
+    int end[2];          /* nodes of ends a and b; 0: terminated */
+    char term[2];        /* terminated ends: 'r' rigid (string), 'o' open
+                            (tube, radiating), 'c' closed (tube) */
+    Expr *f0;            /* string: first partial with rigid ends, Hz;
+                            tube: c / (2 L_eff), L_eff with end corrections */
+    Expr *Rp;            /* port resistance: 1/sqrt(T mu) (string), rho c / (pi r^2) (tube) */
+    Expr *B, *t60, *t60hf, *fhf; /* t60 NULL: lossless; t60hf NULL: = t60 */
+    Expr *rad;           /* tube: radiation radius r / c * fs scale (s), else NULL */
+    double nu1;          /* first resonance in units of f0: 1, or 0.5 for a closed-open tube */
+    int ntaps;
+    int *tap_node;
+    Expr **tap_pos;      /* fraction of the length from end a */
+    double f0_min;       /* lowest f0 over the params' ranges: sizes the lines */
+    int M;               /* dispersion sections (chosen at compile time) */
+    SrcPos pos;
+} Waveguide;
 
 typedef struct Param {
     const char *name;
@@ -347,6 +377,8 @@ typedef struct Circuit {
     int nouts;
     IcSpec *ics;
     int nics;
+    Waveguide *wgs;
+    int nwgs;
     uint32_t hash;        /* FNV-1a of the netlist text, includes appended */
 } Circuit;
 
@@ -364,6 +396,15 @@ double elem_drive(const Circuit *c, const Elem *e, const double *params);
 double *circuit_defaults(const Circuit *c);
 const char *domain_unit(Domain d, char fn);
 void circuit_dump(const Circuit *c, FILE *out);
+
+/* waveguide.c */
+
+/* Chooses each waveguide's dispersion allpasses; errors for loops too
+ * short for their filters and taps outside their waveguide. */
+void wg_choose(Circuit *c);
+/* The design input (a wg_spec of templates/waveguide.c.tmpl) of w at
+ * params p and rate fs. */
+int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs, void *spec);
 
 /* wdf.c: the adaptor tree */
 

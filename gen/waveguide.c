@@ -1,0 +1,76 @@
+/* waveguide.c: compile-time design of waveguide loops.
+ *
+ * The design code is the voice's own (templates/waveguide.c.tmpl), so
+ * what the compiler checks is what the voice computes when a param moves.
+ * Here it chooses the number of dispersion allpasses and checks that each
+ * loop is long enough for its filters at the netlist's rate. */
+#include <math.h>
+
+#include "gen.h"
+
+#include "../templates/waveguide.c.tmpl"
+
+static double eval_or(const Expr *e, const double *p, double def) { return e ? expr_eval(e, p) : def; }
+
+int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs, void *out) {
+    wg_spec *s = out;
+    s->fs = fs;
+    s->f0 = expr_eval(w->f0, p);
+    s->B = eval_or(w->B, p, 0);
+    s->t60 = eval_or(w->t60, p, 0);
+    s->t60hf = eval_or(w->t60hf, p, 0);
+    s->fhf = eval_or(w->fhf, p, 5000);
+    s->nu1 = w->nu1;
+    s->rad = eval_or(w->rad, p, 0);
+    s->nrad = 0;
+    for (int k = 0; k < 2; k++)
+        s->nrad += !w->end[k] && w->term[k] == 'o' && w->tube;
+    s->M = w->M;
+    s->nmin = w->ntaps ? 4 : 2;
+    (void)c;
+    return 0;
+}
+
+/* Fewest dispersion allpasses that bring partials 2..12 within half a
+ * cent at the default params (or the best count up to 32), and errors for
+ * loops too short for their filters. */
+void wg_choose(Circuit *c) {
+    double *p = circuit_defaults(c);
+    for (int i = 0; i < c->nwgs; i++) {
+        Waveguide *w = &c->wgs[i];
+        wg_spec s;
+        wg_loop l;
+        w->M = 0;
+        wg_spec_of(c, w, p, c->rate, &s);
+        if (!(s.B >= 0) || !isfinite(s.B))
+            error_at(w->pos, "string '%s' has B = %g; it must be at least 0", w->name, s.B);
+        if (!(s.t60 >= 0) || !(s.t60hf >= 0) || !(s.fhf > 0))
+            error_at(w->pos, "%s '%s': t60, t60hf and fhf must be positive", w->tube ? "tube" : "string", w->name);
+        if (wg_design(&s, &l) < 0)
+            error_at(w->pos, "%s '%s' is too short for its filters at %g Hz: its loop holds %.2f samples and "
+                     "needs at least %d (lower f0, or raise .rate)", w->tube ? "tube" : "string", w->name,
+                     c->rate, wg_target(&s, s.nu1), s.nmin + 1);
+        if (!(s.B > 0))
+            continue;
+        static const int Ms[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32};
+        double best = l.err;
+        int bestM = 0;
+        for (int k = 0; k < (int)(sizeof Ms / sizeof Ms[0]) && best > 0.5; k++) {
+            s.M = Ms[k];
+            if (wg_design(&s, &l) < 0)
+                break;
+            if (l.err < best - 1e-9)
+                best = l.err, bestM = s.M;
+        }
+        w->M = bestM;
+    }
+    for (int i = 0; i < c->nwgs; i++) {
+        Waveguide *w = &c->wgs[i];
+        for (int j = 0; j < w->ntaps; j++) {
+            double x = expr_eval(w->tap_pos[j], p);
+            if (!(x > 0 && x < 1))
+                error_at(w->pos, "tap '%s' of %s '%s' is at %g of its length; it must lie between 0 and 1",
+                         c->nodes[w->tap_node[j]], w->tube ? "tube" : "string", w->name, x);
+        }
+    }
+}
