@@ -84,6 +84,8 @@ typedef struct Ctx {
     int *wf_off;     /* waveguide -> its first filter state */
     int *wf_nrad;    /* waveguide -> open ends (radiation filters) */
     int nwf;
+    int *wc_off;     /* waveguide -> its first coefficient in c_wf */
+    int nwc;
     int *wt_off;     /* waveguide -> its first tap in c_wk */
     int nwt;
     int *sp_of;      /* element (E_S) -> its index in s_wpre, or -1 */
@@ -247,12 +249,22 @@ static void emit_waveguides(Ctx *x, Buf *o) {
         for (int k = 0; k < x->wf_nrad[w]; k++, j++)
             emit(o, "            t_y = (1 + k_wra%d) * t_x - k_wra%d * s_wf%d;\n            s_wq%d = s_wf%d;\n"
                     "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
-        for (int k = 0; k <= g->M; k++, j++) {
-            const char *a = k < g->M ? format("k_wda%d", w) : format("k_wta%d", w);
-            emit(o, "            t_y = %s * t_x + s_wf%d;\n            s_wq%d = s_wf%d;\n            s_wf%d = t_x - %s * t_y;\n"
-                    "            t_x = t_y;\n", a, j, j, j, j, a);
+        /* the allpass lattice, stage K first: s_wf of stage m holds the
+         * output of stage m - 1 a sample earlier */
+        int s1 = j, K = g->M;
+        for (int m = K; m >= 1; m--) {
+            int sm = s1 + m - 1;
+            emit(o, "            {\n                const real t_f = k_wc%d_%d * t_x - k_wk%d_%d * s_wf%d;\n"
+                    "                const real t_g = k_wk%d_%d * t_x + k_wc%d_%d * s_wf%d;\n",
+                 w, m - 1, w, m - 1, sm, w, m - 1, w, m - 1, sm);
+            if (m == K)
+                emit(o, "                t_y = t_g;\n");
+            else
+                emit(o, "                s_wq%d = s_wf%d;\n                s_wf%d = t_g;\n", sm + 1, sm + 1, sm + 1);
+            emit(o, "                t_x = t_f;\n            }\n");
         }
-        emit(o, "            t_wb%d = t_x;\n        }\n", w);
+        emit(o, "            s_wq%d = s_wf%d;\n            s_wf%d = t_x;\n", s1, s1, s1);
+        emit(o, "            t_wb%d = t_y;\n        }\n", w);
         for (int e = 0; e < 2; e++) {
             if (g->end[e])
                 continue;
@@ -587,9 +599,12 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
     for (int w = 0; w < c->nwgs; w++) {
         emit(o, "    const unsigned k_wNR%d = st->c_wN[%d], k_wNL%d = st->c_wN[%d];\n    (void)k_wNL%d;\n", w, 2 * w, w,
              2 * w + 1, w);
-        static const char *cf[] = {"lb", "la", "ra", "da", "ta"};
-        for (int j = 0; j < 5; j++)
-            emit(o, "    const real k_w%s%d = st->c_wf[%d];\n    (void)k_w%s%d;\n", cf[j], w, 5 * w + j, cf[j], w);
+        static const char *cf[] = {"lb", "la", "ra"};
+        for (int j = 0; j < 3; j++)
+            emit(o, "    const real k_w%s%d = st->c_wf[%d];\n    (void)k_w%s%d;\n", cf[j], w, x->wc_off[w] + j, cf[j], w);
+        for (int m = 0; m < c->wgs[w].M; m++)
+            emit(o, "    const real k_wk%d_%d = st->c_wf[%d], k_wc%d_%d = st->c_wf[%d];\n", w, m, x->wc_off[w] + 3 + 2 * m,
+                 w, m, x->wc_off[w] + 4 + 2 * m);
         for (int j = 0; j < c->wgs[w].ntaps; j++) {
             int t = x->wt_off[w] + j;
             emit(o, "    const unsigned k_wk%d = st->c_wk[%d];\n", t, t);
@@ -985,7 +1000,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    unsigned c_wN[%d];     /* waveguides: whole samples of each line */\n"
         "    unsigned c_wk[%d];     /* waveguide taps: samples from end a */\n"
         "    double c_wR[%d];       /* waveguides: port resistance */\n"
-        "    %s c_wf[%d];    /* waveguides: loss b and a, radiation, dispersion and tuning allpass coefficients */\n"
+        "    %s c_wf[%d];    /* waveguides: loss b and a, radiation a, allpass lattice k and c */\n"
         "    double c_ww[%d];       /* waveguides: storage weights of their filters */\n"
         "    %s s_wf[%d];    /* waveguide filters: states */\n"
         "    %s s_wfp[%d];   /* waveguide filters: states a sample earlier */\n"
@@ -996,7 +1011,7 @@ static const char *state_fields(Ctx *x, int nd) {
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
         r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
-        r, M1(x->nwv), M1(2 * c->nwgs), M1(x->nwt), M1(c->nwgs), r, M1(5 * c->nwgs), M1(4 * c->nwgs), r, M1(x->nwf),
+        r, M1(x->nwv), M1(2 * c->nwgs), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
         r, M1(x->nwf), r, M1(x->nsp), nd * nd, nd, nd);
 #undef M1
 }
@@ -1144,6 +1159,7 @@ static void index_tree(Ctx *x) {
     x->wf_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wf_nrad = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wt_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
+    x->wc_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wend_port = arena_alloc(sizeof(int) * (size_t)(2 * nw + 1));
     for (int w = 0; w < nw; w++) {
         const Waveguide *g = &c->wgs[w];
@@ -1158,7 +1174,9 @@ static void index_tree(Ctx *x) {
         for (int k = 0; k < 2; k++)
             x->wf_nrad[w] += g->tube && !g->end[k] && g->term[k] == 'o';
         x->wf_off[w] = x->nwf;
-        x->nwf += 2 + x->wf_nrad[w] + g->M;
+        x->nwf += 1 + x->wf_nrad[w] + g->M;
+        x->wc_off[w] = x->nwc;
+        x->nwc += 3 + 2 * g->M;
         x->wt_off[w] = x->nwt;
         x->nwt += g->ntaps;
         x->wend_port[2 * w] = x->wend_port[2 * w + 1] = -1;
@@ -1215,7 +1233,10 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         emit(&wgk, "};\nstatic const int wg_tap[][2] = {");
         for (int t = 0; t < x.nwt; t++)
             emit(&wgk, "%s{%d, %d}", t ? ", " : "", x.wtap_port[2 * t], x.wtap_port[2 * t + 1]);
-        emit(&wgk, "%s};\n%s", x.nwt ? "" : "{-1, -1}", tmpl_waveguide_state);
+        emit(&wgk, "%s};\nstatic const int wg_coef[] = {", x.nwt ? "" : "{-1, -1}");
+        for (int w = 0; w < c->nwgs; w++)
+            emit(&wgk, "%s%d", w ? ", " : "", x.wc_off[w]);
+        emit(&wgk, "};\n%s", tmpl_waveguide_state);
     }
     int nicv;
     const char *ictab = ic_table(&x, &nicv);

@@ -332,7 +332,7 @@ typedef struct Waveguide {
     int *tap_node;
     Expr **tap_pos;      /* fraction of the length from end a */
     double f0_min;       /* lowest f0 over the params' ranges: sizes the lines */
-    int M;               /* dispersion sections (chosen at compile time) */
+    int M;               /* order of the loop's allpass (chosen at compile time) */
     SrcPos pos;
 } Waveguide;
 
@@ -399,7 +399,7 @@ void circuit_dump(const Circuit *c, FILE *out);
 
 /* waveguide.c */
 
-/* Chooses each waveguide's dispersion allpasses; errors for loops too
+/* Chooses the order of each waveguide's allpass; errors for loops too
  * short for their filters and taps outside their waveguide. */
 void wg_choose(Circuit *c);
 /* The design input (a wg_spec of templates/waveguide.c.tmpl) of w at

@@ -2,9 +2,10 @@
  *
  * The design code is the voice's own (templates/waveguide.c.tmpl), so
  * what the compiler checks is what the voice computes when a param moves.
- * Here it chooses the number of dispersion allpasses and checks that each
+ * Here it chooses the order of each loop's allpass and checks that each
  * loop is long enough for its filters at the netlist's rate. */
 #include <math.h>
+#include <string.h>
 
 #include "gen.h"
 
@@ -25,22 +26,22 @@ int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs,
     s->nrad = 0;
     for (int k = 0; k < 2; k++)
         s->nrad += !w->end[k] && w->term[k] == 'o' && w->tube;
-    s->M = w->M;
+    s->K = w->M;
     s->nmin = w->ntaps ? 4 : 2;
     (void)c;
     return 0;
 }
 
-/* Fewest dispersion allpasses that bring partials 2..12 within half a
- * cent at the default params (or the best count up to 32), and errors for
- * loops too short for their filters. */
+/* The lowest allpass order that brings partials 1..12 within a quarter
+ * of a cent at the default params (or the best order up to 32), and
+ * errors for loops too short for their filters. */
 void wg_choose(Circuit *c) {
     double *p = circuit_defaults(c);
     for (int i = 0; i < c->nwgs; i++) {
         Waveguide *w = &c->wgs[i];
         wg_spec s;
         wg_loop l;
-        w->M = 0;
+        w->M = 1;
         wg_spec_of(c, w, p, c->rate, &s);
         if (!(s.B >= 0) || !isfinite(s.B))
             error_at(w->pos, "string '%s' has B = %g; it must be at least 0", w->name, s.B);
@@ -50,19 +51,17 @@ void wg_choose(Circuit *c) {
             error_at(w->pos, "%s '%s' is too short for its filters at %g Hz: its loop holds %.2f samples and "
                      "needs at least %d (lower f0, or raise .rate)", w->tube ? "tube" : "string", w->name,
                      c->rate, wg_target(&s, s.nu1), s.nmin + 1);
-        if (!(s.B > 0))
-            continue;
-        static const int Ms[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32};
+        static const int Ks[] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
         double best = l.err;
-        int bestM = 0;
-        for (int k = 0; k < (int)(sizeof Ms / sizeof Ms[0]) && best > 0.5; k++) {
-            s.M = Ms[k];
+        int bestK = 1;
+        for (int k = 0; k < (int)(sizeof Ks / sizeof Ks[0]) && best > 0.25; k++) {
+            s.K = Ks[k];
             if (wg_design(&s, &l) < 0)
                 break;
-            if (l.err < best - 1e-9)
-                best = l.err, bestM = s.M;
+            if (l.err < best - 0.01)
+                best = l.err, bestK = s.K;
         }
-        w->M = bestM;
+        w->M = bestK;
     }
     for (int i = 0; i < c->nwgs; i++) {
         Waveguide *w = &c->wgs[i];
