@@ -797,9 +797,11 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                     emit(cases, "            react[%d] = %s values[k] / (0.5 * st->c_R[%d] / st->fs);\n",
                          x->react[i], sg > 0 ? "" : "-", i);
             }
+            /* a contact's compression is set from either of its nodes: its
+             * distance from what it strikes, negative while apart */
             for (int k = 0; k < x->nnl && fn == 'x'; k++) {
                 const Elem *e = nl_elem(x, k);
-                int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
+                int sg = e->n[0] == nd ? 1 : e->n[1] == nd ? -1 : 0;
                 if (sg && e->nl->kind == NL_CONTACT)
                     emit(cases, "            st->s_nX[%d] = (real)(%svalues[k]);\n", k, sg > 0 ? "" : "-");
             }

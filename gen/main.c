@@ -179,6 +179,7 @@ static bool is_wav(const char *spec) {
 
 typedef struct Event {
     long frame;
+    int order; /* line order, which keeps events at one time in sequence */
     int kind; /* 0 set param, 1 ic */
     int param;
     double value;
@@ -189,7 +190,7 @@ typedef struct Event {
 
 static int cmp_event(const void *a, const void *b) {
     const Event *x = a, *y = b;
-    return x->frame < y->frame ? -1 : x->frame > y->frame;
+    return x->frame < y->frame ? -1 : x->frame > y->frame ? 1 : x->order - y->order;
 }
 
 static void event_error(const char *path, int line, int col, const char *msg) {
@@ -231,6 +232,7 @@ static Event *read_events(const char *path, const wdv_class *cls, double fs, int
             if (!lex_number(tok[0], (int)strlen(tok[0]), &t, &why) || t < 0)
                 event_error(path, line, col, "expected a time in seconds");
             e->frame = lround(t * fs);
+            e->order = n;
             if (nt >= 2 && !strcmp(tok[1], "set")) {
                 if (nt != 4)
                     event_error(path, line, (int)(tok[1] - l) + 1, "expected: TIME set PARAM VALUE");
@@ -321,6 +323,10 @@ static int render(const Opts *o, const Circuit *c, const char *cfile, double fs)
             if (n < 0)
                 n = nf;
         }
+    int nev = 0;
+    Event *ev = o->events ? read_events(o->events, cls, fs, &nev) : NULL;
+    if (n < 0 && nev) /* the last event and three seconds of what follows */
+        n = ev[nev - 1].frame + lround(3 * fs);
     if (n < 0)
         n = lround(fs);
     for (int k = 0; k < o->ninputs; k++) {
@@ -334,8 +340,6 @@ static int render(const Opts *o, const Circuit *c, const char *cfile, double fs)
             in[k].n = n;
         }
     }
-    int nev = 0;
-    Event *ev = o->events ? read_events(o->events, cls, fs, &nev) : NULL;
     double *outbuf = calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double));
     double *ptr_o[64];
     const double *ptr_i[64];
