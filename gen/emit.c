@@ -362,8 +362,10 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     const NlSpec *nl = e->nl;
     const char *tol = format("%.17g", x->opt->tol);
     int it = x->opt->maxit;
-    emit(o, "        real t_bn%d; /* %s (%s:%d:%d) */\n        {\n", k, e->name, e->pos.file->path, e->pos.line,
-         e->pos.col);
+    emit(o, "        real t_bn%d; /* %s (%s:%d:%d) */\n", k, e->name, e->pos.file->path, e->pos.line, e->pos.col);
+    if (nl->kind == NL_CONTACT && !nl->mutated)
+        emit(o, "        int t_open%d;\n", k);
+    emit(o, "        {\n");
     if (nl->mutated) {
         emit(o, "            const double t_v = mem_solve('%c', t_an%d, k_Rn%d, s_nX%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %s, %d);\n",
              nl->mutated, k, k, k, k, k, mem_args(k, nl), tol, it);
@@ -389,6 +391,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
             emit(o, "            const double t_v = contact_solve(t_an%d, k_Rn%d, s_nX%d, s_nv%d, k_T, c_nl%d_0, c_nl%d_1, "
                     "c_nl%d_2, c_nl%d_3, %s, %d);\n", k, k, k, k, k, k, k, k, tol, it);
             emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
+            emit(o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n", k, k);
         } else {
             emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
                  k, k, k, k, nl->pair, k, tol, it);
@@ -433,6 +436,48 @@ static void emit_root(Ctx *x, Buf *o, int b) {
     }
 }
 
+/* The element at the other side of a waveguide port's point. */
+static int partner_port(Ctx *x, int ei) {
+    const Elem *e = &x->c->elems[ei];
+    for (int i = 0; i < x->c->nelems; i++) {
+        const Elem *f = &x->c->elems[i];
+        if (f->kind == E_S && f->wg == e->wg && f->pt == e->pt && f->side != e->side)
+            return i;
+    }
+    return -1;
+}
+
+/* A waveguide tap is transparent when nothing but its two ports meets
+ * there (1), or nothing else but contacts (2: transparent while they are
+ * open, listed in open[]); else 0. */
+static int tap_kind(Ctx *x, int ei, int *open, int *nopen) {
+    const Elem *e = &x->c->elems[ei];
+    const Waveguide *g = &x->c->wgs[e->wg];
+    *nopen = 0;
+    if (e->pt == 0 || e->pt == g->ntaps + 1)
+        return 0;
+    int nd = e->n[0], ports = 0;
+    for (int i = 0; i < x->c->nelems; i++) {
+        const Elem *f = &x->c->elems[i];
+        if (f->n[0] != nd && f->n[1] != nd)
+            continue;
+        if (f->kind == E_S && f->wg == e->wg && f->pt == e->pt) {
+            ports++;
+            continue;
+        }
+        if (f->kind != E_NL || f->nl->kind != NL_CONTACT || f->nl->mutated)
+            return 0;
+        int k = -1;
+        for (int j = 0; j < x->nnl; j++)
+            if (nl_elem(x, j) == f)
+                k = j;
+        if (k < 0)
+            return 0;
+        open[(*nopen)++] = k;
+    }
+    return ports == 2 ? (*nopen ? 2 : 1) : 0;
+}
+
 static void emit_backward(Ctx *x, Buf *o) {
     emit(o, "        /* backward: waves sent to the leaves */\n");
     for (int i = x->w->nnodes - 1; i >= 0; i--) {
@@ -449,6 +494,15 @@ static void emit_backward(Ctx *x, Buf *o) {
                 emit(o, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
                      x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
             } else if (e->kind == E_S) {
+                int open[64], nopen, tk = tap_kind(x, n->elem, open, &nopen);
+                if (tk == 1) {
+                    /* nothing else meets here: the wave passes untouched */
+                    int pe = partner_port(x, n->elem);
+                    emit(o, "        (void)t_a%d; /* %s: transparent */\n", i, e->name);
+                    x->a[i] = x->b[x->w->leaf_of[pe]->id];
+                    x->bpost[i] = b;
+                    continue;
+                }
                 int w = e->wg, m = x->wv_size[w] - 1, tap = x->wt_off[w] + e->pt - 1;
                 const Waveguide *g = &x->c->wgs[w];
                 const char *d;
@@ -456,6 +510,12 @@ static void emit_backward(Ctx *x, Buf *o) {
                     d = e->pt == g->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
                 else
                     d = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
+                if (tk == 2) { /* transparent while its contacts are open */
+                    emit(o, "        if (!(t_open%d", open[0]);
+                    for (int j = 1; j < nopen; j++)
+                        emit(o, " && t_open%d", open[j]);
+                    emit(o, "))\n    ");
+                }
                 emit(o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
                      x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, a, e->name);
             } else {
