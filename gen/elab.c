@@ -177,6 +177,7 @@ static double fn_eval(FnKind fn, double a, double b) {
     case FN_MAX: return a > b ? a : b;
     case FN_POTLIN: return a < 0 ? 0 : a > 1 ? 1 : a;
     case FN_POTLOG: a = a < 0 ? 0 : a > 1 ? 1 : a; return (pow(10, 2 * a) - 1) / 99;
+    case FN_TAPON: return a > 0 && a < 1 ? 1 : 1e-9;
     case FN_COUNT: break;
     }
     unreachable();
@@ -849,6 +850,10 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
                                  : format(".%s.%c", ((const char **)E->nodes.data)[nd], side ? 'r' : 'l');
             Elem *e = add_elem(E, S, l, E_S, suffix, nd, 0);
             e->val = w->Rp;
+            /* a tap that a param moves may leave its string: its ports
+             * then drop out of their junction */
+            if (pt > 0 && pt <= w->ntaps && expr_params(w->tap_pos[pt - 1]))
+                e->val = expr_bin(EX_DIV, w->Rp, expr_call(FN_TAPON, w->tap_pos[pt - 1], NULL));
             e->wg = wi;
             e->pt = pt;
             e->side = side;

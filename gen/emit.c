@@ -317,6 +317,11 @@ static void emit_forward(Ctx *x, Buf *o) {
                          : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m, e->name);
                 emit(o, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
                 x->b[i] = format("t_b%d", i);
+                if (e->pt > 0 && e->pt <= g->ntaps && expr_params(g->tap_pos[e->pt - 1])) {
+                    /* a tap off its string sends nothing into its junction */
+                    emit(o, "        const real t_bo%d = k_won%d ? t_b%d : %s;\n", i, x->wt_off[w] + e->pt - 1, i, lit(x, 0));
+                    x->b[i] = format("t_bo%d", i);
+                }
                 break;
             }
             case E_NL: unreachable();
@@ -448,21 +453,22 @@ static int partner_port(Ctx *x, int ei) {
 }
 
 /* A waveguide tap is transparent when nothing but its two ports meets
- * there (1), or nothing else but contacts (2: transparent while they are
- * open, listed in open[]); else 0. */
+ * there (1), or nothing else but contacts and other strings' taps (2:
+ * transparent while the contacts are open, listed in open[]); else 0. */
 static int tap_kind(Ctx *x, int ei, int *open, int *nopen) {
     const Elem *e = &x->c->elems[ei];
     const Waveguide *g = &x->c->wgs[e->wg];
     *nopen = 0;
     if (e->pt == 0 || e->pt == g->ntaps + 1)
         return 0;
-    int nd = e->n[0], ports = 0;
+    int nd = e->n[0], ports = 0, other = 0;
     for (int i = 0; i < x->c->nelems; i++) {
         const Elem *f = &x->c->elems[i];
         if (f->n[0] != nd && f->n[1] != nd)
             continue;
-        if (f->kind == E_S && f->wg == e->wg && f->pt == e->pt) {
+        if (f->kind == E_S && f->pt > 0 && f->pt <= x->c->wgs[f->wg].ntaps) {
             ports++;
+            other |= f->wg != e->wg || f->pt != e->pt;
             continue;
         }
         if (f->kind != E_NL || f->nl->kind != NL_CONTACT || f->nl->mutated)
@@ -475,7 +481,9 @@ static int tap_kind(Ctx *x, int ei, int *open, int *nopen) {
             return 0;
         open[(*nopen)++] = k;
     }
-    return ports == 2 ? (*nopen ? 2 : 1) : 0;
+    /* taps of several strings meet only through contacts: while those are
+     * open, each string passes on its own */
+    return *nopen ? 2 : ports == 2 && !other ? 1 : 0;
 }
 
 static void emit_backward(Ctx *x, Buf *o) {
@@ -510,11 +518,16 @@ static void emit_backward(Ctx *x, Buf *o) {
                     d = e->pt == g->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
                 else
                     d = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
-                if (tk == 2) { /* transparent while its contacts are open */
-                    emit(o, "        if (!(t_open%d", open[0]);
-                    for (int j = 1; j < nopen; j++)
-                        emit(o, " && t_open%d", open[j]);
-                    emit(o, "))\n    ");
+                bool roam = e->pt > 0 && e->pt <= g->ntaps && expr_params(g->tap_pos[e->pt - 1]);
+                if (tk == 2 || roam) { /* transparent while its contacts are open or it is off its string */
+                    emit(o, "        if (%s", roam ? format("k_won%d", tap) : "1");
+                    if (tk == 2) {
+                        emit(o, " && !(t_open%d", open[0]);
+                        for (int j = 1; j < nopen; j++)
+                            emit(o, " && t_open%d", open[j]);
+                        emit(o, ")");
+                    }
+                    emit(o, ")\n    ");
                 }
                 emit(o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
                      x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, a, e->name);
@@ -667,7 +680,8 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
                  w, m, x->wc_off[w] + 4 + 2 * m);
         for (int j = 0; j < c->wgs[w].ntaps; j++) {
             int t = x->wt_off[w] + j;
-            emit(o, "    const unsigned k_wk%d = st->c_wk[%d];\n", t, t);
+            emit(o, "    const unsigned k_wk%d = st->c_wk[%d];\n    const int k_won%d = st->c_won[%d];\n    (void)k_won%d;\n",
+                 t, t, t, t, t);
         }
     }
     for (int f = 0; f < x->nwf; f++) {
@@ -1061,6 +1075,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s s_wv[%d];    /* waveguides: right- and left-going lines */\n"
         "    unsigned c_wN[%d];     /* waveguides: whole samples of each line */\n"
         "    unsigned c_wk[%d];     /* waveguide taps: samples from end a */\n"
+        "    int c_won[%d];         /* waveguide taps: on their string (a moving tap may leave it) */\n"
         "    double c_wR[%d];       /* waveguides: port resistance */\n"
         "    %s c_wf[%d];    /* waveguides: loss b and a, radiation a, allpass lattice k and c */\n"
         "    double c_ww[%d];       /* waveguides: storage weights of their filters */\n"
@@ -1073,7 +1088,7 @@ static const char *state_fields(Ctx *x, int nd) {
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
         r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
-        r, M1(x->nwv), M1(2 * c->nwgs), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
+        r, M1(x->nwv), M1(2 * c->nwgs), M1(x->nwt), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
         r, M1(x->nwf), r, M1(x->nsp), nd * nd, nd, nd);
 #undef M1
 }

@@ -140,7 +140,7 @@ typedef enum {
 
 typedef enum {
     FN_SQRT, FN_EXP, FN_LOG, FN_LOG10, FN_SIN, FN_COS, FN_TAN, FN_ABS,
-    FN_POW, FN_MIN, FN_MAX, FN_POTLIN, FN_POTLOG, FN_COUNT
+    FN_POW, FN_MIN, FN_MAX, FN_POTLIN, FN_POTLOG, FN_TAPON, FN_COUNT
 } FnKind;
 
 typedef struct Expr Expr;

@@ -133,7 +133,7 @@ static const struct { const char *name; int nargs; } fns[FN_COUNT] = {
     [FN_LOG10] = {"log10", 1}, [FN_SIN] = {"sin", 1}, [FN_COS] = {"cos", 1},
     [FN_TAN] = {"tan", 1},   [FN_ABS] = {"abs", 1},   [FN_POW] = {"pow", 2},
     [FN_MIN] = {"min", 2},   [FN_MAX] = {"max", 2},   [FN_POTLIN] = {"potlin", 1},
-    [FN_POTLOG] = {"potlog", 1},
+    [FN_POTLOG] = {"potlog", 1}, [FN_TAPON] = {"tapon", 1},
 };
 
 const char *fn_name(FnKind fn) { return fns[fn].name; }
