@@ -708,13 +708,16 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
     w->nu1 = 1;
     SrcPos pos = l->namepos;
     Expr *L = need_key(E, S, l, "L");
-    double Ld = expr_eval(L, NULL);
+    double Ld = expr_params(L) ? NAN : expr_eval(L, NULL);
     if (expr_params(L) || !(Ld > 0) || !isfinite(Ld))
         error_at(key(l, "L")->val.pos, "L must be a positive number of metres");
     if (!tube) {
         w->term[0] = w->term[1] = 'r';
         w->f0 = need_key(E, S, l, "f0");
         w->B = key_or(E, S, l, "B", 0);
+        double Bmin = expr_min(E, w->B, key(l, "B") ? key(l, "B")->val.pos : pos, "B");
+        if (!(Bmin >= 0) || !isfinite(Bmin))
+            error_at(key(l, "B")->val.pos, "string '%s' has B = %g; the stiffness must be at least 0", l->name, Bmin);
         KeyVal *mu = key(l, "mu"), *T = key(l, "T");
         if (mu && T)
             error_at(T->pos, "string '%s': give mu= or T=, not both (f0 and L fix the other)", l->name);
@@ -726,7 +729,7 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
         w->Rp = expr_bin(EX_DIV, num(1, pos), Z);
     } else {
         Expr *r = need_key(E, S, l, "r");
-        double rd = expr_eval(r, NULL), cs = 343.2, rho = 1.204;
+        double rd = expr_params(r) ? NAN : expr_eval(r, NULL), cs = 343.2, rho = 1.204;
         if (expr_params(r) || !(rd > 0) || !isfinite(rd))
             error_at(key(l, "r")->val.pos, "r must be a positive number of metres");
         KeyVal *ck = key(l, "c"), *rk = key(l, "rho");
@@ -793,7 +796,7 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
         error_at(tube ? pos : key(l, "f0")->val.pos, "%s '%s' has a first resonance of %g Hz; it must be at "
                  "least 1 Hz", tube ? "tube" : "string", l->name, w->f0_min * w->nu1);
     /* taps */
-    Vec tn = {0}, tp = {0};
+    Vec tn = {0}, tp = {0}, tsrc = {0};
     KeyVal *tk = key(l, "taps");
     if (tk) {
         const Token *t = tk->val.kind == VAL_LIST ? tk->val.toks : NULL;
@@ -822,14 +825,19 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
             *pn = nd;
             vec_push(&tn, pn);
             vec_push(&tp, x);
+            SrcPos *ps = arena_alloc(sizeof(SrcPos));
+            *ps = t[i + 2].pos;
+            vec_push(&tsrc, ps);
         }
     }
     w->ntaps = tn.len;
     w->tap_node = arena_alloc(sizeof(int) * (size_t)(tn.len + 1));
     w->tap_pos = arena_alloc(sizeof(Expr *) * (size_t)(tn.len + 1));
+    w->tap_src = arena_alloc(sizeof(SrcPos) * (size_t)(tn.len + 1));
     for (int j = 0; j < tn.len; j++) {
         w->tap_node[j] = *(int *)tn.data[j];
         w->tap_pos[j] = tp.data[j];
+        w->tap_src[j] = *(SrcPos *)tsrc.data[j];
     }
     if (node[0] && node[0] == node[1])
         error_at(l->args[1].pos, "%s '%s' has both ends on one node", tube ? "tube" : "string", l->name);

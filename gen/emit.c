@@ -161,9 +161,9 @@ static void emit_update(Ctx *x, Buf *o) {
             emit(o, "    %s /* %s (%s:%d:%d) */\n", guard(n->pmask), e->name, e->pos.file->path,
                  e->pos.line, e->pos.col);
             if (e->kind == E_C)
-                emit(o, "        retune(st, %d, %d, T / (2 * %s));\n", n->id, x->react[n->id], v);
+                emit(o, "        retune(st, %d, %d, T / (2 * %s), 1);\n", n->id, x->react[n->id], v);
             else if (e->kind == E_L)
-                emit(o, "        retune(st, %d, %d, 2 * %s / T);\n", n->id, x->react[n->id], v);
+                emit(o, "        retune(st, %d, %d, 2 * %s / T, 0);\n", n->id, x->react[n->id], v);
             else
                 emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, v);
             continue;
@@ -190,10 +190,22 @@ static void emit_update(Ctx *x, Buf *o) {
         } else if (nl->kind == NL_CONTACT) {
             v[0] = nl->k, v[1] = nl->alpha, v[2] = nl->lambda, v[3] = nl->gap;
         }
-        for (int j = 0; j < 4; j++)
-            if (v[j])
-                emit(o, "    %s /* %s */\n        st->c_nl[%d] = (real)(%s);\n", guard(expr_params(v[j])), e->name,
-                     4 * k + j, cexpr(x, v[j]));
+        for (int j = 0; j < 4; j++) {
+            if (!v[j])
+                continue;
+            emit(o, "    %s { /* %s */\n        const double t_new = %s;\n", guard(expr_params(v[j])), e->name,
+                 cexpr(x, v[j]));
+            /* a contact held compressed keeps its energy from rising: a
+             * stiffer felt is compressed less, a smaller gap keeps the
+             * compression */
+            if (nl->kind == NL_CONTACT && !nl->mutated && (j == 0 || j == 3))
+                emit(o, "        const double t_X = st->s_nX[%d] - st->c_nl[%d], t_old = st->c_nl[%d];\n"
+                        "        if (!full && t_X > 0 && t_old > 0 && t_new %s t_old)\n"
+                        "            st->s_nX[%d] = (real)(%s);\n", k, 4 * k + 3, 4 * k + j, j == 0 ? ">" : "<", k,
+                     j == 0 ? format("st->c_nl[%d] + t_X * pow(t_old / t_new, 1 / (st->c_nl[%d] + 1))", 4 * k + 3, 4 * k + 1)
+                            : format("st->s_nX[%d] + t_new - t_old", k));
+            emit(o, "        st->c_nl[%d] = (real)t_new;\n    }\n", 4 * k + j);
+        }
     }
     for (int b = 0; b < x->w->nroots; b++)
         emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
@@ -397,6 +409,7 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
                     "c_nl%d_2, c_nl%d_3, %s, %d);\n", k, k, k, k, k, k, k, k, tol, it);
             emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
             emit(o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n", k, k);
+            emit(o, "            (void)t_open%d;\n", k);
         } else {
             emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
                  k, k, k, k, nl->pair, k, tol, it);

@@ -68,7 +68,7 @@ void wg_choose(Circuit *c) {
         for (int j = 0; j < w->ntaps; j++) {
             double x = expr_eval(w->tap_pos[j], p);
             if (!(x > 0 && x < 1) && (!expr_params(w->tap_pos[j]) || !isfinite(x)))
-                error_at(w->pos, "tap '%s' of %s '%s' is at %g of its length; it must lie between 0 and 1",
+                error_at(w->tap_src[j], "tap '%s' of %s '%s' is at %g of its length; it must lie between 0 and 1",
                          c->nodes[w->tap_node[j]], w->tube ? "tube" : "string", w->name, x);
         }
     }

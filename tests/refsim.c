@@ -256,12 +256,20 @@ static void update_values(refsim *s) {
             const NlSpec *nl = el->nl;
             real *q = s->nlp + 4 * e;
             s->val[e] = 0.0;
-            q[0] = q[1] = q[2] = q[3] = 0.0;
             if (nl->kind == NL_DIODE) {
                 q[0] = expr_eval(nl->Is, s->params);
                 q[1] = (real)expr_eval(nl->n, s->params) *
                        (real)expr_eval(nl->Vt, s->params);
             } else if (nl->kind == NL_CONTACT) {
+                /* a compressed contact does not gain energy from a change:
+                 * a stiffer felt is compressed less, a smaller gap keeps
+                 * the compression (the voice's rule) */
+                real k0 = q[0], g0 = q[3], X = s->cx ? s->cx[e] - g0 : 0;
+                real kn = expr_eval(nl->k, s->params), gn = expr_eval(nl->gap, s->params);
+                if (k0 > 0 && X > 0 && kn > k0)
+                    s->cx[e] = g0 + X * powl(k0 / kn, 1 / (q[1] + 1)), X = s->cx[e] - g0;
+                if (k0 > 0 && X > 0 && gn < g0)
+                    s->cx[e] += gn - g0;
                 q[0] = expr_eval(nl->k, s->params);
                 q[1] = expr_eval(nl->alpha, s->params);
                 q[2] = expr_eval(nl->lambda, s->params);
@@ -271,7 +279,16 @@ static void update_values(refsim *s) {
         }
         int v = el->kind == E_R || el->kind == E_C || el->kind == E_L ||
                 has_value(el);
+        real old = s->val[e];
         s->val[e] = v ? elem_value(c, el, s->params) : 0.0;
+        /* a reactance that grows keeps its charge or flux, one that shrinks
+         * its voltage or current: a change never adds energy */
+        if (old > 0 && s->val[e] > old && s->v && s->i) {
+            if (el->kind == E_C)
+                s->v[e] *= old / s->val[e];
+            else if (el->kind == E_L)
+                s->i[e] *= old / s->val[e];
+        }
         if ((el->kind == E_V || el->kind == E_I) && el->input < 0)
             s->cdrv[e] = elem_drive(c, el, s->params);
     }

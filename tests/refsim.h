@@ -12,8 +12,11 @@
  *     its voltage is v(n[0]) - v(n[1]).
  *   - E_R: v = R i.  E_C: i[n] = (2C/T)(v[n] - v[n-1]) - i[n-1].
  *     E_L: v[n] = (2L/T)(i[n] - i[n-1]) - v[n-1].  Element values are those
- *     of the current sample (after any param change); the Kirchhoff history
- *     v[n-1], i[n-1] is kept across changes.
+ *     of the current sample (after any param change); across a change the Kirchhoff
+ *     history v[n-1], i[n-1] is kept, except that a capacitor that grows
+ *     keeps its charge (v[n-1] scales by C_old / C_new) and an inductor
+ *     that grows its flux (i[n-1] scales by L_old / L_new): no change adds
+ *     energy.
  *   - E_V: v = drive + R i (R = 0 without a value: ideal).
  *     E_I: i = drive + v/R (no v/R term without a value).
  *     drive is the source's input sample, or elem_drive() for sources that
