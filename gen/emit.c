@@ -261,21 +261,18 @@ static void emit_waveguides(Ctx *x, Buf *o) {
         for (int k = 0; k < x->wf_nrad[w]; k++, j++)
             emit(o, "            t_y = (1 + k_wra%d) * t_x - k_wra%d * s_wf%d;\n            s_wq%d = s_wf%d;\n"
                     "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
-        /* the allpass lattice, stage K first: s_wf of stage m holds the
-         * output of stage m - 1 a sample earlier */
-        int s1 = j, K = g->M;
-        for (int m = K; m >= 1; m--) {
-            int sm = s1 + m - 1;
-            emit(o, "            {\n                const real t_f = k_wc%d_%d * t_x - k_wk%d_%d * s_wf%d;\n"
-                    "                const real t_g = k_wk%d_%d * t_x + k_wc%d_%d * s_wf%d;\n",
-                 w, m - 1, w, m - 1, sm, w, m - 1, w, m - 1, sm);
-            if (m == K)
-                emit(o, "                t_y = t_g;\n");
-            else
-                emit(o, "                s_wq%d = s_wf%d;\n                s_wf%d = t_g;\n", sm + 1, sm + 1, sm + 1);
-            emit(o, "                t_x = t_f;\n            }\n");
-        }
-        emit(o, "            s_wq%d = s_wf%d;\n            s_wf%d = t_x;\n", s1, s1, s1);
+        /* the allpass lattice, its top stage in use first: the state of
+         * stage m holds the output of stage m - 1 a sample earlier */
+        emit(o, "            {\n                real *const t_s = st->s_wf + %d, *const t_q = st->s_wfp + %d;\n"
+                "                const real *const t_c = st->c_wf + %d;\n"
+                "                for (unsigned m = k_wJ%d; m >= 1; m--) {\n"
+                "                    const real t_k = t_c[2 * m - 2], t_cc = t_c[2 * m - 1], t_sm = t_s[m - 1];\n"
+                "                    const real t_f = t_cc * t_x - t_k * t_sm, t_g = t_k * t_x + t_cc * t_sm;\n"
+                "                    if (m == k_wJ%d)\n                        t_y = t_g;\n"
+                "                    else\n                        t_q[m] = t_s[m], t_s[m] = t_g;\n"
+                "                    t_x = t_f;\n                }\n"
+                "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n",
+             j, j, x->wc_off[w] + 3, w, w);
         emit(o, "            t_wb%d = t_y;\n        }\n", w);
         for (int e = 0; e < 2; e++) {
             if (g->end[e])
@@ -688,19 +685,23 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
         static const char *cf[] = {"lb", "la", "ra"};
         for (int j = 0; j < 3; j++)
             emit(o, "    const real k_w%s%d = st->c_wf[%d];\n    (void)k_w%s%d;\n", cf[j], w, x->wc_off[w] + j, cf[j], w);
-        for (int m = 0; m < c->wgs[w].M; m++)
-            emit(o, "    const real k_wk%d_%d = st->c_wf[%d], k_wc%d_%d = st->c_wf[%d];\n", w, m, x->wc_off[w] + 3 + 2 * m,
-                 w, m, x->wc_off[w] + 4 + 2 * m);
+
         for (int j = 0; j < c->wgs[w].ntaps; j++) {
             int t = x->wt_off[w] + j;
             emit(o, "    const unsigned k_wk%d = st->c_wk[%d];\n    const int k_won%d = st->c_won[%d];\n    (void)k_won%d;\n",
                  t, t, t, t, t);
         }
     }
-    for (int f = 0; f < x->nwf; f++) {
-        emit(o, "    real s_wf%d = st->s_wf[%d], s_wq%d = st->s_wfp[%d];\n", f, f, f, f);
-        emit(wb, "    st->s_wf[%d] = s_wf%d;\n    st->s_wfp[%d] = s_wq%d;\n", f, f, f, f);
-        emit(fl, "        s_wf%d = flush(s_wf%d);\n        s_wq%d = flush(s_wq%d);\n", f, f, f, f);
+    for (int w = 0; w < c->nwgs; w++) {
+        int f0 = x->wf_off[w], nl = 1 + x->wf_nrad[w];
+        for (int f = f0; f < f0 + nl; f++) { /* one-poles: locals */
+            emit(o, "    real s_wf%d = st->s_wf[%d], s_wq%d = st->s_wfp[%d];\n", f, f, f, f);
+            emit(wb, "    st->s_wf[%d] = s_wf%d;\n    st->s_wfp[%d] = s_wq%d;\n", f, f, f, f);
+            emit(fl, "        s_wf%d = flush(s_wf%d);\n        s_wq%d = flush(s_wq%d);\n", f, f, f, f);
+        }
+        emit(o, "    const unsigned k_wJ%d = st->c_wJ[%d];\n", w, w);
+        emit(fl, "        for (int m = %d; m < %d; m++) {\n            st->s_wf[m] = flush(st->s_wf[m]);\n"
+                 "            st->s_wfp[m] = flush(st->s_wfp[m]);\n        }\n", f0 + nl, f0 + nl + c->wgs[w].M);
     }
     for (int k = 0; k < x->nsp; k++) {
         emit(o, "    real s_wpre%d = st->s_wpre[%d];\n", k, k);
@@ -1087,6 +1088,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    unsigned c_D[%d];      /* transmission lines: delay in samples */\n"
         "    %s s_wv[%d];    /* waveguides: right- and left-going lines */\n"
         "    unsigned c_wN[%d];     /* waveguides: whole samples of each line */\n"
+        "    unsigned c_wJ[%d];     /* waveguides: stages of the allpass lattice in use */\n"
         "    unsigned c_wk[%d];     /* waveguide taps: samples from end a */\n"
         "    int c_won[%d];         /* waveguide taps: on their string (a moving tap may leave it) */\n"
         "    double c_wR[%d];       /* waveguides: port resistance */\n"
@@ -1101,7 +1103,7 @@ static const char *state_fields(Ctx *x, int nd) {
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
         r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
-        r, M1(x->nwv), M1(2 * c->nwgs), M1(x->nwt), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
+        r, M1(x->nwv), M1(2 * c->nwgs), M1(c->nwgs), M1(x->nwt), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
         r, M1(x->nwf), r, M1(x->nsp), nd * nd, nd, nd);
 #undef M1
 }

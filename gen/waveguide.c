@@ -33,8 +33,9 @@ int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs,
 }
 
 /* The lowest allpass order that brings partials 1..12 within a quarter
- * of a cent at the default params (or the best order up to 32), and
- * errors for loops too short for their filters. */
+ * of a cent at the default params, at the netlist's rate and at 44.1, 48
+ * and 96 kHz (or the best order up to 32), and errors for loops too short
+ * for their filters. */
 void wg_choose(Circuit *c) {
     double *p = circuit_defaults(c);
     for (int i = 0; i < c->nwgs; i++) {
@@ -51,15 +52,24 @@ void wg_choose(Circuit *c) {
             error_at(w->pos, "%s '%s' is too short for its filters at %g Hz: its loop holds %.2f samples and "
                      "needs at least %d (lower f0, or raise .rate)", w->tube ? "tube" : "string", w->name,
                      c->rate, wg_target(&s, s.nu1), s.nmin + 1);
-        static const int Ks[] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
-        double best = l.err;
+        /* the order must serve the usual rates too: a voice runs at the
+         * host's rate, and uses a lower order where that suffices */
+        static const int Ks[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32};
+        static const double rates[] = {0, 44100, 48000, 96000};
+        double best = 1e300;
         int bestK = 1;
         for (int k = 0; k < (int)(sizeof Ks / sizeof Ks[0]) && best > 0.25; k++) {
-            s.K = Ks[k];
-            if (wg_design(&s, &l) < 0)
-                break;
-            if (l.err < best - 0.01)
-                best = l.err, bestK = s.K;
+            double worst = 0;
+            for (int r = 0; r < 4; r++) {
+                wg_spec sr = s;
+                sr.fs = r ? rates[r] : c->rate;
+                sr.K = Ks[k];
+                if (wg_design(&sr, &l) < 0)
+                    l.err = r ? 1e9 : 1e300;
+                worst = fmax(worst, l.err);
+            }
+            if (worst < best - 0.01)
+                best = worst, bestK = Ks[k];
         }
         w->M = bestK;
     }

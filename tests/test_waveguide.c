@@ -3,8 +3,9 @@
  *
  *   - tuning: the first partial of a string with rigid ends within 1 cent
  *     of f0 from 27.5 Hz to 4186 Hz at 44.1, 48 and 96 kHz;
- *   - stiffness: partials n = 1..12 of stiff strings within 3 cents of
- *     n f0 sqrt((1 + B n^2) / (1 + B)), and how far past 12 that holds;
+ *   - stiffness: partials n = 1..12 (those below 0.4 fs) of stiff strings
+ *     within 3 cents of n f0 sqrt((1 + B n^2) / (1 + B)), and how far past
+ *     12 that holds;
  *   - decay: the first partial's t60 within 10 %, partials near fhf in
  *     t60hf within 25 %;
  *   - passivity of every loop filter (gain at most 1, lattice stable, the
@@ -126,15 +127,21 @@ static void test_stiffness(void **state) {
             long n = (long)(fs * fmax(1.0, 60 / f0));
             double *y = render(v.cls, st, n, 1, 0);
             double worst = 0;
-            int reach = 0, nmax = 0;
+            int reach = 0, nmax = 0, absent = 0;
             for (int k = 1; k <= 60; k++) {
                 double fk = partial_freq(f0, B, k);
-                if (fk > 0.45 * fs)
+                if (fk > 0.4 * fs)
                     break;
                 double half = 0.3 * (partial_freq(f0, B, k + 1) - fk);
                 double f = pt_peak_freq(y, (size_t)n, fs, fk - half, fk + half);
                 double c = pt_cents(f, fk);
                 nmax = k;
+                if (isnan(f)) { /* a partial the strike or the pickup hardly reaches */
+                    absent += k <= 12;
+                    if (k == reach + 1)
+                        reach = k;
+                    continue;
+                }
                 if (k <= 12) {
                     worst = fmax(worst, fabs(c));
                     if (!(fabs(c) < 3))
@@ -143,8 +150,10 @@ static void test_stiffness(void **state) {
                 if (k == reach + 1 && fabs(c) < 3)
                     reach = k;
             }
-            printf("f0 %7.2f B %.0e fs %5.0f: partials 1..%d worst %.3f cents; within 3 cents up to n = %d "
-                   "(of %d below 0.45 fs)\n", f0, B, fs, nmax < 12 ? nmax : 12, worst, reach, nmax);
+            printf("f0 %7.2f B %.0e fs %5.0f: partials 1..%d worst %.3f cents (%d without a peak at the pickup); "
+                   "within 3 cents up to n = %d (of %d below 0.4 fs)\n", f0, B, fs, nmax < 12 ? nmax : 12, worst,
+                   absent, reach, nmax);
+            assert_true(absent <= 1);
             free(y);
             tl_state_free(st);
         }
