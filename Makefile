@@ -64,15 +64,30 @@ run-tests: all $(TEST_BINS)
 	sh tests/run.sh $(TEST_BINS)
 
 bench: deps
-	$(MAKE) all build/bench/bench build/bench/nlbench
-	build/bench/bench $(NETLISTS)
+	sh scripts/install-bench-deps.sh
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench
+	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
+	build/bench/stkbench netlists/pluck.wdn
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+# The plucked string against STK's Plucked (libstk-dev, through a C++ shim).
+# Until tests/partials.h exists, stkbench.c uses a stand-in peak finder.
+CXX     ?= g++
+build/bench/stkshim.o: bench/stkshim.cpp
+	@mkdir -p $(dir $@)
+	$(CXX) -O2 -g -Wall -Wextra -pedantic -MMD -MP -c $< -o $@
+
+build/bench/stkbench.o: $(wildcard tests/partials.h)
+build/bench/stkbench.o: CFLAGS += $(if $(wildcard tests/partials.h),-DPT_HAVE)
+
+build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lstk -lstdc++
 
 format:
 	clang-format -i gen/*.c gen/*.h runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c bench/*.h

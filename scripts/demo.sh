@@ -6,8 +6,11 @@
 # two seconds, driven by an input that suits the netlist: an impulse for a
 # mechanical system (a tap), white noise for a circuit (its filtering is
 # what one hears), and no input at all for a netlist without `.input`.
-# Prints one line per netlist; stops with non-zero status at the first
-# failure.
+# A netlist may come with timed events, netlists/NAME.WHAT.events (strikes
+# and param changes: a scale on the piano, a phrase on the dulcimer); each
+# is rendered to out/NAME.WHAT.wav, until three seconds after its last
+# event.  Prints one line per render; stops with non-zero status at the
+# first failure.
 #
 # Usage: sh scripts/demo.sh     (or: make demo, which builds bin/wdc first)
 
@@ -56,5 +59,19 @@ for f in netlists/*.wdn; do
     }
     echo "demo: $f -> $OUT/ (C) and $wav (${SECONDS_} s, input: ${spec:-none})"
     n=$((n + 1))
+    for ev in netlists/"$name".*.events; do
+        [ -e "$ev" ] || continue
+        what=$(basename "$ev" .events)
+        ewav="$OUT/$what.wav"
+        if [ -n "$spec" ]; then
+            "$WDC" "$f" --render "$ewav" --events "$ev" --input "$spec"
+        else
+            "$WDC" "$f" --render "$ewav" --events "$ev"
+        fi || {
+            echo "demo: FAILED: $WDC $f --render $ewav --events $ev" >&2
+            exit 1
+        }
+        echo "demo: $f with $ev -> $ewav"
+    done
 done
 echo "demo: $n netlists compiled and rendered"
