@@ -148,6 +148,15 @@ static void test_tube_unknown_key(void **state) {
     expect(".domain mechanical\ntube W1 0 0 L=0.6 r=7m f0=100 taps=p@0.5\nR1 p 0 1k\n.end\n", "t.wdn:2:24: error: unknown key 'f0' for tube 'W1'");
 }
 
+static void test_two_hammers_one_tap(void **state) {
+    (void)state;
+    expect(".domain mechanical\nstring S1 0 0 L=0.6 f0=200 taps=h@0.3\nmass M1 a m=5m\ncontact H1 a h k=1e9 alpha=2.5\n"
+           "mass M2 b m=5m\ncontact H2 b h k=1e9 alpha=2.5\n.end\n",
+           "t.wdn:6:9: error: 'H1' and 'H2' are coupled with no delay between them: each instantaneously coupled part "
+           "may hold one nonlinear element; a delay element between them (a transmission line, string or tube) would "
+           "decouple them");
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_missing_f0),
@@ -168,6 +177,7 @@ int main(void) {
         cmocka_unit_test(test_tube_ends),
         cmocka_unit_test(test_tube_radius),
         cmocka_unit_test(test_tube_unknown_key),
+        cmocka_unit_test(test_two_hammers_one_tap),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
