@@ -586,6 +586,30 @@ static void curve(Line *l, NlSpec *nl) {
         error_at(k->val.pos, "the curve passes v = 0 at i = %g: a passive curve goes through the origin", i0);
 }
 
+/* spring K x y curve=(x0:f0 ...) and C NAME a b curve=(v0:q0 ...): a
+ * nonlinear reactance, reached through the mutator the compiler puts in
+ * (R-L for a spring: force = curve(stretch); R-C for a capacitor: charge =
+ * curve(voltage)); solved by Newton at its root. */
+static bool nonlinear_reactance(Elab *E, Scope *S, Line *l, const int *node) {
+    KeyVal *cv = key(l, "curve");
+    if (!cv)
+        return false;
+    const char *other = l->kind == BK_SPRING ? "k" : "C";
+    if (key(l, other) || (l->kind == BK_C && l->nargs > 2))
+        error_at(cv->pos, "%s '%s' takes a value or curve=, not both", block_desc[l->kind].desc, l->name);
+    if (key(l, "IC") || key(l, "ic"))
+        error_at((key(l, "IC") ? key(l, "IC") : key(l, "ic"))->pos, "a nonlinear %s takes no IC= (a spring's "
+                 "stretch comes from .ic x(node); a capacitor starts at rest)", block_desc[l->kind].desc);
+    Elem *e = add_elem(E, S, l, E_NL, "", node[0], node[1]);
+    NlSpec *nl = arena_alloc(sizeof(NlSpec));
+    nl->kind = NL_CURVE;
+    curve(l, nl);
+    nl->solver = SOLVER_NEWTON;
+    nl->mutated = l->kind == BK_SPRING ? 'L' : 'C';
+    e->nl = nl;
+    return true;
+}
+
 static NlSpec *nonlinear(Elab *E, Scope *S, Line *l) {
     NlSpec *nl = arena_alloc(sizeof(NlSpec));
     Line *src = l;
@@ -894,6 +918,8 @@ static void element(Elab *E, Scope *S, Line *l) {
     Elem *e;
     switch (l->kind) {
     case BK_R: case BK_C: case BK_L: {
+        if (l->kind == BK_C && nonlinear_reactance(E, S, l, node))
+            return;
         ElemKind k = l->kind == BK_R ? E_R : l->kind == BK_C ? E_C : E_L;
         e = add_elem(E, S, l, k, "", node[0], node[1]);
         const char *kn = l->kind == BK_R ? "R" : l->kind == BK_C ? "C" : "L";
@@ -920,6 +946,8 @@ static void element(Elab *E, Scope *S, Line *l) {
         e->val = need_key(E, S, l, "m");
         break;
     case BK_SPRING:
+        if (nonlinear_reactance(E, S, l, node))
+            return;
         e = add_elem(E, S, l, E_L, "", node[0], node[1]);
         e->val = div1(need_key(E, S, l, "k"));
         break;

@@ -124,8 +124,21 @@ static void test_lines(void **s) {
            "t.wdn:4:16: error: Z0= must be a number (params are not known at compile time)");
 }
 
+/* springs and capacitors with a curve (the compiler's mutators) */
+static void test_nonlinear_reactances(void **s) {
+    (void)s;
+    expect(".ic v(m)=1\nmass M m m=1m\nspring K m 0 k=1k curve=(-1m:-1 0:0 1m:1)\n",
+           "t.wdn:3:19: error: spring 'K' takes a value or curve=, not both");
+    expect(".ic v(m)=1\nmass M m m=1m\nspring K m 0 curve=(-1m:1 0:0 1m:1)\n",
+           "t.wdn:3:21: error: point -0.001:1 delivers power: a passive curve has v*i >= 0");
+    expect(".input in\nV1 a 0 in R=1k\nCX a 0 curve=(-1:-1u 0:0 1:1u) IC=1\n",
+           "t.wdn:3:32: error: a nonlinear capacitor takes no IC= (a spring's stretch comes from .ic x(node); a "
+           "capacitor starts at rest)");
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_nonlinear_reactances),
         cmocka_unit_test(test_coupled_nonlinearities), cmocka_unit_test(test_unadaptable),
         cmocka_unit_test(test_curves), cmocka_unit_test(test_solvers), cmocka_unit_test(test_lines),
     };
