@@ -30,6 +30,7 @@ input_for() {
     grep -q '^[[:space:]]*\.input[[:space:]]' "$1" || return 0
     case "$(basename "$1" .wdn)" in
     tonestack) echo "sine:220:0.5" ;; # a tone shows the EQ's colouring
+    bore) echo "noise:1e-7" ;;          # a breath of 0.1 ml/s: about 1 Pa in the bore
     *)
         if grep -q '^[[:space:]]*\.domain[[:space:]][[:space:]]*mechanical' "$1"
         then echo "impulse"
