@@ -39,6 +39,17 @@ input_for() {
     esac
 }
 
+# render NETLIST SPEC ARGS...: bin/wdc NETLIST --render ARGS, driven by
+# SPEC when there is one; stops the demo if it fails.
+render() {
+    f=$1 spec=$2
+    shift 2
+    "$WDC" "$f" --render "$@" ${spec:+--input "$spec"} || {
+        echo "demo: FAILED: $WDC $f --render $*${spec:+ --input $spec}" >&2
+        exit 1
+    }
+}
+
 n=0
 for f in netlists/*.wdn; do
     [ -e "$f" ] || { echo "demo: no netlists in netlists/" >&2; exit 1; }
@@ -50,28 +61,13 @@ for f in netlists/*.wdn; do
         echo "demo: FAILED: $WDC $f -o $OUT" >&2
         exit 1
     fi
-    if [ -n "$spec" ]; then
-        "$WDC" "$f" --render "$wav" --seconds "$SECONDS_" --input "$spec"
-    else
-        "$WDC" "$f" --render "$wav" --seconds "$SECONDS_"
-    fi || {
-        echo "demo: FAILED: $WDC $f --render $wav --seconds $SECONDS_${spec:+ --input $spec}" >&2
-        exit 1
-    }
+    render "$f" "$spec" "$wav" --seconds "$SECONDS_"
     echo "demo: $f -> $OUT/ (C) and $wav (${SECONDS_} s, input: ${spec:-none})"
     n=$((n + 1))
     for ev in netlists/"$name".*.events; do
         [ -e "$ev" ] || continue
-        what=$(basename "$ev" .events)
-        ewav="$OUT/$what.wav"
-        if [ -n "$spec" ]; then
-            "$WDC" "$f" --render "$ewav" --events "$ev" --input "$spec"
-        else
-            "$WDC" "$f" --render "$ewav" --events "$ev"
-        fi || {
-            echo "demo: FAILED: $WDC $f --render $ewav --events $ev" >&2
-            exit 1
-        }
+        ewav="$OUT/$(basename "$ev" .events).wav"
+        render "$f" "$spec" "$ewav" --events "$ev"
         echo "demo: $f with $ev -> $ewav"
     done
 done

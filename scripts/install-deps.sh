@@ -76,23 +76,8 @@ if [ -z "$missing" ]; then
     exit 0
 fi
 
-command -v apt-get >/dev/null 2>&1 ||
-    fail "missing:$missing; apt-get is not available, install the equivalent packages with your system's package manager"
-
-if [ "$(id -u)" -eq 0 ]; then
-    SUDO=""
-elif command -v sudo >/dev/null 2>&1; then
-    SUDO="sudo"
-else
-    fail "missing:$missing; not root and sudo is not available: run as root: apt-get install$missing"
-fi
-
-say "running: ${SUDO:+$SUDO }apt-get update"
-$SUDO apt-get update || fail "apt-get update failed"
-say "installing:$missing"
 # shellcheck disable=SC2086 # the package list is meant to split
-$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y $missing ||
-    fail "apt-get install$missing failed"
+sh "$(dirname "$0")/apt-install.sh" install-deps $missing || exit 1
 
 # Check again: a package may be installed yet not give what is needed.
 still=""

@@ -787,3 +787,39 @@ int tl_read_csv(const char *path, const char *header, const char *regen,
     fclose(f);
     return 0;
 }
+
+/* ---- diagnostics ---- */
+
+/* Runs the phases on `text`; returns the first line of what they printed,
+ * or "" if all succeeded. */
+char *tl_first_report(const char *text, Solver solver) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *mem = open_memstream(&buf, &len);
+    FILE *saved = diag.out;
+    diag.out = mem;
+    Circuit *c = wdc_load_string("t.wdn", text);
+    static char dir[32];
+    strcpy(dir, "/tmp/wdc-diag.XXXXXX");
+    if (c && mkdtemp(dir)) {
+        jmp_buf jb;
+        diag.jmp = &jb;
+        if (!setjmp(jb)) {
+            Wdf *w = wdf_build(c, c->rate);
+            EmitOpts eo = {.outdir = dir, .solver = solver, .table = 64, .tol = 1e-12, .maxit = 50};
+            emit_voice(w, &eo);
+        }
+        diag.jmp = NULL;
+        char cmd[64]; /* also after an error unwound the emitter */
+        snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+        if (system(cmd) != 0)
+            fprintf(mem, "cannot remove %s\n", dir);
+    }
+    fclose(mem);
+    diag.out = saved;
+    char *nl = strchr(buf, '\n');
+    if (nl)
+        *nl = 0;
+    return buf;
+}
+

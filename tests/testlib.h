@@ -268,4 +268,11 @@ struct CMUnitTest;
 int tl_run_per_netlist(const char *group, void (*fn)(void **state),
                        const struct CMUnitTest *fixed, size_t nfixed);
 
+/* ---- diagnostics ---- */
+
+/* Runs the phases the command line runs (load, structure, emit into a
+ * temporary directory) on netlist `text` named t.wdn until one reports;
+ * returns the first line it printed (malloc'd), or "" if all succeeded. */
+char *tl_first_report(const char *text, Solver solver);
+
 #endif
