@@ -77,14 +77,10 @@ build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) b
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 # The plucked string against STK's Plucked (libstk-dev, through a C++ shim).
-# Until tests/partials.h exists, stkbench.c uses a stand-in peak finder.
 CXX     ?= g++
 build/bench/stkshim.o: bench/stkshim.cpp
 	@mkdir -p $(dir $@)
 	$(CXX) -O2 -g -Wall -Wextra -pedantic -MMD -MP -c $< -o $@
-
-build/bench/stkbench.o: $(wildcard tests/partials.h)
-build/bench/stkbench.o: CFLAGS += $(if $(wildcard tests/partials.h),-DPT_HAVE)
 
 build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lstk -lstdc++

@@ -38,11 +38,7 @@
 #include "wdvoice.h"
 #include "../tests/testlib.h"
 
-#ifdef PT_HAVE
 #include "../tests/partials.h"
-#else
-#include <complex.h>
-#endif
 
 #define FS 48000.0
 #define BLOCK 256
@@ -60,56 +56,6 @@ struct stkp *stkp_new(double lowest, unsigned seed);
 void stkp_note_on(struct stkp *s, double freq, double amp);
 void stkp_tick(struct stkp *s, double *buf, int n);
 void stkp_free(struct stkp *s);
-
-#ifndef PT_HAVE
-/* Temporary stand-in for tests/partials.h until it exists: the magnitude
- * of the Hann-windowed DTFT, scanned on a grid of half its bins, then the
- * best cell narrowed by golden-section search. */
-static double pt_mag(const double *xw, size_t n, double fs, double f) {
-    return cabs(tl_dtft(xw, (long)n, 2.0 * M_PI * f / fs));
-}
-
-static double pt_peak_freq(const double *x, size_t n, double fs, double f_lo, double f_hi) {
-    double *xw = malloc(sizeof(double) * (n ? n : 1));
-    if (!xw || n < 2 || !(f_hi > f_lo)) {
-        free(xw);
-        return NAN;
-    }
-    for (size_t i = 0; i < n; i++)
-        xw[i] = x[i] * (0.5 - 0.5 * cos(2.0 * M_PI * (double)i / (double)(n - 1)));
-    double step = 0.5 * fs / (double)n, best = f_lo, bestm = -1.0;
-    for (double f = f_lo; f <= f_hi; f += step) {
-        double m = pt_mag(xw, n, fs, f);
-        if (m > bestm) {
-            bestm = m;
-            best = f;
-        }
-    }
-    const double g = 0.5 * (sqrt(5.0) - 1.0);
-    double a = fmax(f_lo, best - step), b = fmin(f_hi, best + step);
-    double c = b - g * (b - a), d = a + g * (b - a);
-    double mc = pt_mag(xw, n, fs, c), md = pt_mag(xw, n, fs, d);
-    while (b - a > 1e-7 * best) {
-        if (mc > md) {
-            b = d;
-            d = c;
-            md = mc;
-            c = b - g * (b - a);
-            mc = pt_mag(xw, n, fs, c);
-        } else {
-            a = c;
-            c = d;
-            mc = md;
-            d = a + g * (b - a);
-            md = pt_mag(xw, n, fs, d);
-        }
-    }
-    free(xw);
-    return 0.5 * (a + b);
-}
-
-static double pt_cents(double f, double ref) { return 1200.0 * log2(f / ref); }
-#endif
 
 /* ---- the two voices behind one interface ---- */
 
@@ -310,9 +256,6 @@ int main(int argc, char **argv) {
     printf("tuning: the strongest peak within f0 * [0.9, 1.1] of %.0f s after one pluck\n"
            "        (wdc: 1 N for one sample on `f`, output `vel`; STK: noteOn(f0, 1.0), lowest %.0f Hz)\n",
            TUNE_S, STK_LOWEST);
-#ifndef PT_HAVE
-    printf("        peak finder: stkbench's stand-in (tests/partials.h was absent at build time)\n");
-#endif
     printf("stk:    bench/stkshim.cpp built with g++ -O2 against libstk (STK's inner loop is inline)\n");
     bench_print_setup(VOICE_CFLAGS);
     fflush(stdout);

@@ -32,16 +32,16 @@ int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs,
     return 0;
 }
 
-/* The lowest allpass order that brings partials 1..12 within a quarter
- * of a cent at the default params, at the netlist's rate and at 44.1, 48
- * and 96 kHz (or the best order up to 32), and errors for loops too short
- * for their filters. */
+/* The lowest allpass order that brings partials 1..12 within half a
+ * cent at the default params, at the netlist's rate and at 44.1 and
+ * 96 kHz (or the best order up to 32; a voice at another rate may use a
+ * lower order), and errors for loops too short for their filters. */
 void wg_choose(Circuit *c) {
     double *p = circuit_defaults(c);
     for (int i = 0; i < c->nwgs; i++) {
         Waveguide *w = &c->wgs[i];
         wg_spec s;
-        wg_loop l;
+        wg_loop l = {0};
         w->M = 1;
         wg_spec_of(c, w, p, c->rate, &s);
         if (!(s.B >= 0) || !isfinite(s.B))
@@ -54,17 +54,21 @@ void wg_choose(Circuit *c) {
                      c->rate, wg_target(&s, s.nu1), s.nmin + 1);
         /* the order must serve the usual rates too: a voice runs at the
          * host's rate, and uses a lower order where that suffices */
-        static const int Ks[] = {1, 2, 3, 4, 6, 8, 12, 16, 24, 32};
-        static const double rates[] = {0, 44100, 48000, 96000};
+        if (!(s.B > 0))
+            continue; /* one stage tunes a string without stiffness */
+        static const int Ks[] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
+        static const double rates[] = {0, 44100, 96000};
         double best = 1e300;
         int bestK = 1;
-        for (int k = 0; k < (int)(sizeof Ks / sizeof Ks[0]) && best > 0.25; k++) {
+        for (int k = 0; k < (int)(sizeof Ks / sizeof Ks[0]) && best > 0.5; k++) {
             double worst = 0;
-            for (int r = 0; r < 4; r++) {
+            for (int r = 0; r < 3 && worst < best; r++) {
                 wg_spec sr = s;
                 sr.fs = r ? rates[r] : c->rate;
                 sr.K = Ks[k];
-                if (wg_design(&sr, &l) < 0)
+                wg_loss(&sr, &l);
+                wg_radiation(&sr, &l);
+                if (wg_design_order(&sr, Ks[k], sr.nmin, &l) < 0)
                     l.err = r ? 1e9 : 1e300;
                 worst = fmax(worst, l.err);
             }
