@@ -56,24 +56,36 @@ void wg_choose(Circuit *c) {
          * host's rate, and uses a lower order where that suffices */
         if (!(s.B > 0))
             continue; /* one stage tunes a string without stiffness */
+        /* the error of each order at each rate, designed once; an order K
+         * serves a rate with the orders the voice tries (wg_design) */
         static const int Ks[] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
         static const double rates[] = {0, 44100, 96000};
+        double err[3][WG_KMAX + 1];
+        for (int r = 0; r < 3; r++)
+            for (int j = 0; j <= WG_KMAX; j++)
+                err[r][j] = -1;
         double best = 1e300;
         int bestK = 1;
         for (int k = 0; k < (int)(sizeof Ks / sizeof Ks[0]) && best > 0.5; k++) {
             double worst = 0;
+            int K = Ks[k];
             for (int r = 0; r < 3 && worst < best; r++) {
-                wg_spec sr = s;
-                sr.fs = r ? rates[r] : c->rate;
-                sr.K = Ks[k];
-                wg_loss(&sr, &l);
-                wg_radiation(&sr, &l);
-                if (wg_design_order(&sr, Ks[k], sr.nmin, &l) < 0)
-                    l.err = r ? 1e9 : 1e300;
-                worst = fmax(worst, l.err);
+                double e = 1e300;
+                for (int J = K; J >= 1; J = J > K - 3 ? J - 1 : J / 2) {
+                    if (err[r][J] < 0) {
+                        wg_spec sr = s;
+                        sr.fs = r ? rates[r] : c->rate;
+                        wg_loss(&sr, &l);
+                        wg_radiation(&sr, &l);
+                        err[r][J] = wg_design_order(&sr, J, sr.nmin, &l) < 0 ? 1e300
+                                  : l.err + (fabs(l.err1) > 0.01 ? 1e3 * fabs(l.err1) : 0);
+                    }
+                    e = fmin(e, err[r][J]);
+                }
+                worst = fmax(worst, e);
             }
             if (worst < best - 0.01)
-                best = worst, bestK = Ks[k];
+                best = worst, bestK = K;
         }
         w->M = bestK;
     }
