@@ -263,6 +263,13 @@ static void emit_waveguides(Ctx *x, Buf *o) {
                     "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
         /* the allpass lattice, its top stage in use first: the state of
          * stage m holds the output of stage m - 1 a sample earlier */
+        if (g->M == 1) { /* one stage: the fine tuning alone */
+            emit(o, "            {\n                const real t_k = st->c_wf[%d], t_cc = st->c_wf[%d], t_sm = st->s_wf[%d];\n"
+                    "                t_y = t_k * t_x + t_cc * t_sm;\n"
+                    "                st->s_wfp[%d] = t_sm;\n                st->s_wf[%d] = t_cc * t_x - t_k * t_sm;\n"
+                    "            }\n            t_wb%d = t_y;\n        }\n",
+                 x->wc_off[w] + 3, x->wc_off[w] + 4, j, j, j, w);
+        } else
         emit(o, "            {\n                real *const t_s = st->s_wf + %d, *const t_q = st->s_wfp + %d;\n"
                 "                const real *const t_c = st->c_wf + %d;\n"
                 "                for (unsigned m = k_wJ%d; m >= 1; m--) {\n"
@@ -273,7 +280,8 @@ static void emit_waveguides(Ctx *x, Buf *o) {
                 "                    t_x = t_f;\n                }\n"
                 "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n",
              j, j, x->wc_off[w] + 3, w, w);
-        emit(o, "            t_wb%d = t_y;\n        }\n", w);
+        if (g->M != 1)
+            emit(o, "            t_wb%d = t_y;\n        }\n", w);
         for (int e = 0; e < 2; e++) {
             if (g->end[e])
                 continue;
@@ -699,7 +707,7 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
             emit(wb, "    st->s_wf[%d] = s_wf%d;\n    st->s_wfp[%d] = s_wq%d;\n", f, f, f, f);
             emit(fl, "        s_wf%d = flush(s_wf%d);\n        s_wq%d = flush(s_wq%d);\n", f, f, f, f);
         }
-        emit(o, "    const unsigned k_wJ%d = st->c_wJ[%d];\n", w, w);
+        emit(o, "    const unsigned k_wJ%d = st->c_wJ[%d];\n    (void)k_wJ%d;\n", w, w, w);
         emit(fl, "        for (int m = %d; m < %d; m++) {\n            st->s_wf[m] = flush(st->s_wf[m]);\n"
                  "            st->s_wfp[m] = flush(st->s_wfp[m]);\n        }\n", f0 + nl, f0 + nl + c->wgs[w].M);
     }
