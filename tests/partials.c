@@ -483,7 +483,10 @@ static int pt_spec_make(pt_spec *s, const double *x, size_t L, double fs, double
     double khi = fmin(floor(f_hi * (double)N / fs), (double)(h - 1));
     if (!(klo <= khi) || !(pmax > 0.0))
         return 0;
-    s->edge = fmax(pw[(size_t)klo], pw[(size_t)khi]);
+    /* the bins at or just outside the ends of the band */
+    double elo = fmax(floor(f_lo * (double)N / fs), 0.0);
+    double ehi = fmin(ceil(f_hi * (double)N / fs), (double)h);
+    s->edge = fmax(pw[(size_t)elo], pw[(size_t)ehi]);
     s->cand = malloc(((size_t)(khi - klo) + 1) * sizeof *s->cand);
     if (!s->cand)
         goto fail;

@@ -38,10 +38,13 @@
  * ~0.3 s) of at least ~40 periods that lies among other partials at least
  * ~3 % away in frequency and up to 40 dB stronger, with white noise 80 dB
  * below it, provided the neighbours can be told apart at all: they lie
- * outside the band, the band is about centred on the partial, and its
- * half-width is at least ~3 / t60 Hz (the partial's own half-power width
- * is 2.2 / t60 Hz).  With noise only 40 dB below the partial, expect
- * errors of a few hundredths of a cent, up to ~0.1, for t60 = 0.3 s.
+ * outside the band, at least ~12 / t60 Hz away (t60 the shorter of theirs
+ * and the partial's; the half-power width of a partial is 2.2 / t60 Hz),
+ * and the band is about centred on the partial with a half-width of at
+ * least ~3 / t60 Hz.  Closer neighbours 40 dB stronger can pull it by
+ * ~0.003 / t60 Hz (10 / t60 Hz away) to ~0.03 / t60 Hz (6 / t60 Hz
+ * away).  With noise only 40 dB below the partial, expect errors of a few
+ * hundredths of a cent, up to ~0.1, for t60 = 0.3 s.
  *
  * Local maxima more than PT_FLOOR_DB below the strongest bin of the whole
  * spectrum are not peaks (sidelobes, rounding).  Returns NAN if there is no
