@@ -820,7 +820,7 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
         error_at(tube ? pos : key(l, "f0")->val.pos, "%s '%s' has a first resonance of %g Hz; it must be at "
                  "least 1 Hz", tube ? "tube" : "string", l->name, w->f0_min * w->nu1);
     /* taps */
-    Vec tn = {0}, tp = {0}, tsrc = {0};
+    Vec tn = {0}, tp = {0}, tsrc = {0}, tnames = {0};
     KeyVal *tk = key(l, "taps");
     if (tk) {
         const Token *t = tk->val.kind == VAL_LIST ? tk->val.toks : NULL;
@@ -852,16 +852,19 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
             SrcPos *ps = arena_alloc(sizeof(SrcPos));
             *ps = t[i + 2].pos;
             vec_push(&tsrc, ps);
+            vec_push(&tnames, (void *)nm);
         }
     }
     w->ntaps = tn.len;
     w->tap_node = arena_alloc(sizeof(int) * (size_t)(tn.len + 1));
     w->tap_pos = arena_alloc(sizeof(Expr *) * (size_t)(tn.len + 1));
     w->tap_src = arena_alloc(sizeof(SrcPos) * (size_t)(tn.len + 1));
+    w->tap_name = arena_alloc(sizeof(char *) * (size_t)(tn.len + 1));
     for (int j = 0; j < tn.len; j++) {
         w->tap_node[j] = *(int *)tn.data[j];
         w->tap_pos[j] = tp.data[j];
         w->tap_src[j] = *(SrcPos *)tsrc.data[j];
+        w->tap_name[j] = tnames.data[j];
     }
     if (node[0] && node[0] == node[1])
         error_at(l->args[1].pos, "%s '%s' has both ends on one node", tube ? "tube" : "string", l->name);
@@ -879,7 +882,7 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
             if ((pt == 0 && side == 0) || (pt == w->ntaps + 1 && side == 1))
                 continue;
             const char *suffix = pt == 0 ? ".a" : pt == w->ntaps + 1 ? ".b"
-                                 : format(".%s.%c", ((const char **)E->nodes.data)[nd], side ? 'r' : 'l');
+                                 : format(".%s.%c", w->tap_name[pt - 1], side ? 'r' : 'l');
             Elem *e = add_elem(E, S, l, E_S, suffix, nd, 0);
             e->val = w->Rp;
             /* a tap that a param moves may leave its string: its ports

@@ -332,6 +332,7 @@ typedef struct Waveguide {
     int *tap_node;
     Expr **tap_pos;      /* fraction of the length from end a */
     SrcPos *tap_src;     /* where each tap is written */
+    const char **tap_name; /* each tap's node as written */
     double f0_min;       /* lowest f0 over the params' ranges: sizes the lines */
     int M;               /* order of the loop's allpass (chosen at compile time) */
     SrcPos pos;
