@@ -616,6 +616,10 @@ static int bench_netlist(const char *path, double seconds) {
         return 0;
     char label[64];
     bench_label(path, label, sizeof label);
+    if (c->nwgs) { /* only contacts, solved by Newton; no reference simulates a string */
+        add_note("%s: %s", label, "strings or tubes: its speed is in bench, its accuracy in tests/test_waveguide.c");
+        return 0;
+    }
     if (c->ninputs > MAXIO || c->nouts > MAXIO || c->nouts < 1) {
         add_note("%s: %s", label, "no outputs, or more than 16 inputs or outputs: not measured");
         return 0;
