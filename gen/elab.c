@@ -692,12 +692,10 @@ static bool is_tok(const Token *t, char c) { return t->len == 1 && t->text[0] ==
  * bounds, and the defaults); every param it depends on needs finite
  * bounds. */
 static double expr_min(Elab *E, Expr *e, SrcPos pos, const char *what) {
-    Circuit *c = E->c;
     double *p = arena_alloc(sizeof(double) * (size_t)(E->params.len + 1));
     for (int j = 0; j < E->params.len; j++)
         p[j] = ((Param *)E->params.data[j])->def;
     double m = expr_eval(e, p);
-    (void)c;
     for (int j = 0; j < E->params.len && j < 64; j++) {
         if (!(expr_params(e) >> j & 1))
             continue;
@@ -843,8 +841,6 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
                     error_at(t[i].pos, "tap '%s' is given twice", nm);
             Value v = token_value(&t[i + 2]);
             Expr *x = value_expr(E, S, &v, "a tap position");
-            double *p = circuit_defaults(E->c);
-            (void)p;
             int *pn = arena_alloc(sizeof(int));
             *pn = nd;
             vec_push(&tn, pn);
@@ -856,6 +852,9 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
         }
     }
     w->ntaps = tn.len;
+    w->nmin = w->ntaps ? 4 : 2;
+    for (int k = 0; k < 2; k++)
+        w->nrad += tube && !node[k] && w->term[k] == 'o';
     w->tap_node = arena_alloc(sizeof(int) * (size_t)(tn.len + 1));
     w->tap_pos = arena_alloc(sizeof(Expr *) * (size_t)(tn.len + 1));
     w->tap_src = arena_alloc(sizeof(SrcPos) * (size_t)(tn.len + 1));

@@ -82,7 +82,6 @@ typedef struct Ctx {
     int *wv_size;    /* waveguide -> length of each line (a power of two) */
     int nwv;         /* entries of s_wv */
     int *wf_off;     /* waveguide -> its first filter state */
-    int *wf_nrad;    /* waveguide -> open ends (radiation filters) */
     int nwf;
     int *wc_off;     /* waveguide -> its first coefficient in c_wf */
     int nwc;
@@ -91,7 +90,6 @@ typedef struct Ctx {
     int *sp_of;      /* element (E_S) -> its index in s_wpre, or -1 */
     int nsp;
     int *wtap_port;  /* tap -> ports facing a and b (2 each) */
-    int *wend_port;  /* waveguide -> ports of end a and end b (-1: terminated) */
 } Ctx;
 
 static const char *lit(Ctx *x, double v) {
@@ -219,20 +217,18 @@ static void emit_update(Ctx *x, Buf *o) {
     }
     for (int w = 0; w < c->nwgs; w++) {
         const Waveguide *g = &c->wgs[w];
-        uint64_t mask = expr_params(g->f0) | expr_params(g->Rp) | (g->B ? expr_params(g->B) : 0) |
-                        (g->t60 ? expr_params(g->t60) : 0) | (g->t60hf ? expr_params(g->t60hf) : 0) |
-                        (g->fhf ? expr_params(g->fhf) : 0);
+        uint64_t mask = expr_params(g->f0) | expr_params(g->Rp) | expr_params(g->B) | expr_params(g->fhf) |
+                        (g->t60 ? expr_params(g->t60) : 0) | (g->t60hf ? expr_params(g->t60hf) : 0);
         Buf xs = {0};
         for (int j = 0; j < g->ntaps; j++) {
             mask |= expr_params(g->tap_pos[j]);
             emit(&xs, "%s%s", j ? ", " : "", cexpr(x, g->tap_pos[j]));
         }
-        int nrad = x->wf_nrad[w];
         emit(o, "    %s { /* %s (%s:%d:%d) */\n", guard(mask), g->name, g->pos.file->path, g->pos.line, g->pos.col);
         emit(o, "        const wg_spec sp = {st->fs, fmax(%s, %.17g), %s, %s, %s, %s, %.17g, %.17g, %d, %d, %d};\n",
-             cexpr(x, g->f0), g->f0_min, g->B ? cexpr(x, g->B) : "0.0", g->t60 ? cexpr(x, g->t60) : "0.0",
-             g->t60hf ? cexpr(x, g->t60hf) : "0.0", g->fhf ? cexpr(x, g->fhf) : "5000.0", g->nu1,
-             g->rad ? expr_eval(g->rad, NULL) : 0.0, nrad, g->M, g->ntaps ? 4 : 2);
+             cexpr(x, g->f0), g->f0_min, cexpr(x, g->B), g->t60 ? cexpr(x, g->t60) : "0.0",
+             g->t60hf ? cexpr(x, g->t60hf) : "0.0", cexpr(x, g->fhf), g->nu1,
+             g->rad ? expr_eval(g->rad, NULL) : 0.0, g->nrad, g->M, g->nmin);
         emit(o, "        const double x[] = {%s};\n        wg_retune(st, %d, &sp, pos(%s), x);\n    }\n",
              g->ntaps ? str(&xs) : "0.0", w, cexpr(x, g->Rp));
     }
@@ -246,6 +242,12 @@ static void emit_update(Ctx *x, Buf *o) {
 
 /* ---- the sample loop ---- */
 
+/* A waveguide port at a tap that a param moves: it may be off its string. */
+static bool roams(const Ctx *x, const Elem *e) {
+    const Waveguide *g = &x->c->wgs[e->wg];
+    return e->pt > 0 && e->pt <= g->ntaps && expr_params(g->tap_pos[e->pt - 1]);
+}
+
 /* Each waveguide's right-going wave meets end b through the loop filters;
  * terminated ends reflect. */
 static void emit_waveguides(Ctx *x, Buf *o) {
@@ -258,30 +260,27 @@ static void emit_waveguides(Ctx *x, Buf *o) {
         emit(o, "            t_y = k_wlb%d * t_x - k_wla%d * s_wf%d;\n            s_wq%d = s_wf%d;\n            s_wf%d = t_y;\n"
                 "            t_x = t_y;\n", w, w, f, f, f, f);
         int j = f + 1;
-        for (int k = 0; k < x->wf_nrad[w]; k++, j++)
+        for (int k = 0; k < g->nrad; k++, j++)
             emit(o, "            t_y = (1 + k_wra%d) * t_x - k_wra%d * s_wf%d;\n            s_wq%d = s_wf%d;\n"
                     "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
-        /* the allpass lattice, its top stage in use first: the state of
-         * stage m holds the output of stage m - 1 a sample earlier */
-        if (g->M == 1) { /* one stage: the fine tuning alone */
-            emit(o, "            {\n                const real t_k = st->c_wf[%d], t_cc = st->c_wf[%d], t_sm = st->s_wf[%d];\n"
-                    "                t_y = t_k * t_x + t_cc * t_sm;\n"
-                    "                st->s_wfp[%d] = t_sm;\n                st->s_wf[%d] = t_cc * t_x - t_k * t_sm;\n"
-                    "            }\n            t_wb%d = t_y;\n        }\n",
-                 x->wc_off[w] + 3, x->wc_off[w] + 4, j, j, j, w);
-        } else
+        /* the allpass lattice: its top stage in use gives the output, then
+         * each stage m down to 1 passes on its rotation; the state of stage
+         * m holds the output of stage m - 1 a sample earlier */
         emit(o, "            {\n                real *const t_s = st->s_wf + %d, *const t_q = st->s_wfp + %d;\n"
                 "                const real *const t_c = st->c_wf + %d;\n"
-                "                for (unsigned m = k_wJ%d; m >= 1; m--) {\n"
-                "                    const real t_k = t_c[2 * m - 2], t_cc = t_c[2 * m - 1], t_sm = t_s[m - 1];\n"
-                "                    const real t_f = t_cc * t_x - t_k * t_sm, t_g = t_k * t_x + t_cc * t_sm;\n"
-                "                    if (m == k_wJ%d)\n                        t_y = t_g;\n"
-                "                    else\n                        t_q[m] = t_s[m], t_s[m] = t_g;\n"
-                "                    t_x = t_f;\n                }\n"
-                "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n",
-             j, j, x->wc_off[w] + 3, w, w);
-        if (g->M != 1)
-            emit(o, "            t_wb%d = t_y;\n        }\n", w);
+                "                const unsigned t_J = %s;\n"
+                "                const real t_k = t_c[2 * t_J - 2], t_cc = t_c[2 * t_J - 1], t_sm = t_s[t_J - 1];\n"
+                "                t_y = t_k * t_x + t_cc * t_sm;\n"
+                "                t_x = t_cc * t_x - t_k * t_sm;\n",
+             j, j, x->wc_off[w] + 3, g->M == 1 ? "1u" : format("k_wJ%d", w));
+        if (g->M > 1) /* one stage is the fine tuning alone */
+            emit(o, "                for (unsigned m = t_J - 1; m >= 1; m--) {\n"
+                    "                    const real t_km = t_c[2 * m - 2], t_cm = t_c[2 * m - 1], t_s1 = t_s[m - 1];\n"
+                    "                    t_q[m] = t_s[m];\n"
+                    "                    t_s[m] = t_km * t_x + t_cm * t_s1;\n"
+                    "                    t_x = t_cm * t_x - t_km * t_s1;\n                }\n");
+        emit(o, "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n"
+                "            t_wb%d = t_y;\n        }\n", w);
         for (int e = 0; e < 2; e++) {
             if (g->end[e])
                 continue;
@@ -334,7 +333,7 @@ static void emit_forward(Ctx *x, Buf *o) {
                          : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m, e->name);
                 emit(o, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
                 x->b[i] = format("t_b%d", i);
-                if (e->pt > 0 && e->pt <= g->ntaps && expr_params(g->tap_pos[e->pt - 1])) {
+                if (roams(x, e)) {
                     /* a tap off its string sends nothing into its junction */
                     emit(o, "        const real t_bo%d = k_won%d ? t_b%d : %s;\n", i, x->wt_off[w] + e->pt - 1, i, lit(x, 0));
                     x->b[i] = format("t_bo%d", i);
@@ -489,14 +488,14 @@ static int tap_kind(Ctx *x, int ei, int *open, int *nopen) {
             other |= f->wg != e->wg || f->pt != e->pt;
             continue;
         }
-        if (f->kind != E_NL || f->nl->kind != NL_CONTACT || f->nl->mutated)
-            return 0;
         int k = -1;
-        for (int j = 0; j < x->nnl; j++)
+        for (int j = 0; j < x->nnl && f->kind == E_NL && f->nl->kind == NL_CONTACT && !f->nl->mutated; j++)
             if (nl_elem(x, j) == f)
                 k = j;
-        if (k < 0)
+        if (k < 0) { /* something else meets here: never transparent */
+            *nopen = 0;
             return 0;
+        }
         open[(*nopen)++] = k;
     }
     /* taps of several strings meet only through contacts: while those are
@@ -536,17 +535,15 @@ static void emit_backward(Ctx *x, Buf *o) {
                     d = e->pt == g->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
                 else
                     d = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
-                bool roam = e->pt > 0 && e->pt <= g->ntaps && expr_params(g->tap_pos[e->pt - 1]);
-                if (tk == 2 || roam) { /* transparent while its contacts are open or it is off its string */
-                    emit(o, "        if (%s", roam ? format("k_won%d", tap) : "1");
-                    if (tk == 2) {
-                        emit(o, " && !(t_open%d", open[0]);
-                        for (int j = 1; j < nopen; j++)
-                            emit(o, " && t_open%d", open[j]);
-                        emit(o, ")");
-                    }
-                    emit(o, ")\n    ");
-                }
+                /* untouched while its contacts are open or it is off its string */
+                Buf cond = {0};
+                if (roams(x, e))
+                    emit(&cond, "k_won%d", tap);
+                for (int j = 0; j < nopen; j++)
+                    emit(&cond, "%s%st_open%d%s", j ? " && " : cond.len ? " && !(" : "!(", "", open[j],
+                         j == nopen - 1 ? ")" : "");
+                if (cond.len)
+                    emit(o, "        if (%s)\n    ", str(&cond));
                 emit(o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
                      x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, a, e->name);
             } else {
@@ -701,7 +698,7 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
         }
     }
     for (int w = 0; w < c->nwgs; w++) {
-        int f0 = x->wf_off[w], nl = 1 + x->wf_nrad[w];
+        int f0 = x->wf_off[w], nl = 1 + c->wgs[w].nrad;
         for (int f = f0; f < f0 + nl; f++) { /* one-poles: locals */
             emit(o, "    real s_wf%d = st->s_wf[%d], s_wq%d = st->s_wfp[%d];\n", f, f, f, f);
             emit(wb, "    st->s_wf[%d] = s_wf%d;\n    st->s_wfp[%d] = s_wq%d;\n", f, f, f, f);
@@ -1257,10 +1254,8 @@ static void index_tree(Ctx *x) {
     x->wv_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wv_size = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wf_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
-    x->wf_nrad = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wt_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     x->wc_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
-    x->wend_port = arena_alloc(sizeof(int) * (size_t)(2 * nw + 1));
     for (int w = 0; w < nw; w++) {
         const Waveguide *g = &c->wgs[w];
         double fmax = c->rate * 4 > 192000 ? c->rate * 4 : 192000;
@@ -1270,16 +1265,12 @@ static void index_tree(Ctx *x) {
         x->wv_off[w] = x->nwv;
         x->wv_size[w] = size;
         x->nwv += 2 * size;
-        x->wf_nrad[w] = 0;
-        for (int k = 0; k < 2; k++)
-            x->wf_nrad[w] += g->tube && !g->end[k] && g->term[k] == 'o';
         x->wf_off[w] = x->nwf;
-        x->nwf += 1 + x->wf_nrad[w] + g->M;
+        x->nwf += 1 + g->nrad + g->M;
         x->wc_off[w] = x->nwc;
         x->nwc += 3 + 2 * g->M;
         x->wt_off[w] = x->nwt;
         x->nwt += g->ntaps;
-        x->wend_port[2 * w] = x->wend_port[2 * w + 1] = -1;
     }
     x->sp_of = arena_alloc(sizeof(int) * (size_t)(c->nelems + 1));
     x->wtap_port = arena_alloc(sizeof(int) * (size_t)(2 * x->nwt + 2));
@@ -1289,12 +1280,7 @@ static void index_tree(Ctx *x) {
         if (e->kind != E_S)
             continue;
         x->sp_of[i] = x->nsp++;
-        const Waveguide *g = &c->wgs[e->wg];
-        if (e->pt == 0)
-            x->wend_port[2 * e->wg] = x->sp_of[i];
-        else if (e->pt == g->ntaps + 1)
-            x->wend_port[2 * e->wg + 1] = x->sp_of[i];
-        else
+        if (e->pt > 0 && e->pt <= c->wgs[e->wg].ntaps)
             x->wtap_port[2 * (x->wt_off[e->wg] + e->pt - 1) + e->side] = x->sp_of[i];
     }
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
@@ -1329,7 +1315,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         emit(&wgk, "%s\nstatic const int wg_tab[][8] = {", tmpl_waveguide);
         for (int w = 0; w < c->nwgs; w++)
             emit(&wgk, "%s{%d, %d, %d, %d, %d, %d, %d, %d}", w ? ", " : "", x.wv_off[w], x.wv_off[w] + x.wv_size[w],
-                 x.wv_size[w] - 1, x.wf_off[w], x.wf_nrad[w], c->wgs[w].M, x.wt_off[w], c->wgs[w].ntaps);
+                 x.wv_size[w] - 1, x.wf_off[w], c->wgs[w].nrad, c->wgs[w].M, x.wt_off[w], c->wgs[w].ntaps);
         emit(&wgk, "};\nstatic const int wg_tap[][2] = {");
         for (int t = 0; t < x.nwt; t++)
             emit(&wgk, "%s{%d, %d}", t ? ", " : "", x.wtap_port[2 * t], x.wtap_port[2 * t + 1]);

@@ -325,7 +325,8 @@ typedef struct Waveguide {
     Expr *f0;            /* string: first partial with rigid ends, Hz;
                             tube: c / (2 L_eff), L_eff with end corrections */
     Expr *Rp;            /* port resistance: 1/sqrt(T mu) (string), rho c / (pi r^2) (tube) */
-    Expr *B, *t60, *t60hf, *fhf; /* t60 NULL: lossless; t60hf NULL: = t60 */
+    Expr *B, *fhf;
+    Expr *t60, *t60hf;   /* NULL: lossless; t60hf NULL: = t60 */
     Expr *rad;           /* tube: radiation radius r / c * fs scale (s), else NULL */
     double nu1;          /* first resonance in units of f0: 1, or 0.5 for a closed-open tube */
     int ntaps;
@@ -335,6 +336,8 @@ typedef struct Waveguide {
     const char **tap_name; /* each tap's node as written */
     double f0_min;       /* lowest f0 over the params' ranges: sizes the lines */
     int M;               /* order of the loop's allpass (chosen at compile time) */
+    int nrad;            /* open tube ends: radiation filters */
+    int nmin;            /* fewest whole samples its loop may hold (4 with taps) */
     SrcPos pos;
 } Waveguide;
 
@@ -404,9 +407,6 @@ void circuit_dump(const Circuit *c, FILE *out);
 /* Chooses the order of each waveguide's allpass; errors for loops too
  * short for their filters and taps outside their waveguide. */
 void wg_choose(Circuit *c);
-/* The design input (a wg_spec of templates/waveguide.c.tmpl) of w at
- * params p and rate fs. */
-int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs, void *spec);
 
 /* wdf.c: the adaptor tree */
 

@@ -13,23 +13,11 @@
 
 static double eval_or(const Expr *e, const double *p, double def) { return e ? expr_eval(e, p) : def; }
 
-int wg_spec_of(const Circuit *c, const Waveguide *w, const double *p, double fs, void *out) {
-    wg_spec *s = out;
-    s->fs = fs;
-    s->f0 = expr_eval(w->f0, p);
-    s->B = eval_or(w->B, p, 0);
-    s->t60 = eval_or(w->t60, p, 0);
-    s->t60hf = eval_or(w->t60hf, p, 0);
-    s->fhf = eval_or(w->fhf, p, 5000);
-    s->nu1 = w->nu1;
-    s->rad = eval_or(w->rad, p, 0);
-    s->nrad = 0;
-    for (int k = 0; k < 2; k++)
-        s->nrad += !w->end[k] && w->term[k] == 'o' && w->tube;
-    s->K = w->M;
-    s->nmin = w->ntaps ? 4 : 2;
-    (void)c;
-    return 0;
+/* The design input of w at params p and rate fs. */
+static wg_spec spec_of(const Waveguide *w, const double *p, double fs) {
+    return (wg_spec){.fs = fs, .f0 = expr_eval(w->f0, p), .B = expr_eval(w->B, p), .t60 = eval_or(w->t60, p, 0),
+                     .t60hf = eval_or(w->t60hf, p, 0), .fhf = expr_eval(w->fhf, p), .nu1 = w->nu1,
+                     .rad = eval_or(w->rad, p, 0), .nrad = w->nrad, .K = w->M, .nmin = w->nmin};
 }
 
 /* The lowest allpass order that brings partials 1..12 within half a
@@ -40,10 +28,9 @@ void wg_choose(Circuit *c) {
     double *p = circuit_defaults(c);
     for (int i = 0; i < c->nwgs; i++) {
         Waveguide *w = &c->wgs[i];
-        wg_spec s;
         wg_loop l = {0};
         w->M = 1;
-        wg_spec_of(c, w, p, c->rate, &s);
+        wg_spec s = spec_of(w, p, c->rate);
         if (!(s.B >= 0) || !isfinite(s.B))
             error_at(w->pos, "string '%s' has B = %g; it must be at least 0", w->name, s.B);
         if (!(s.t60 >= 0) || !(s.t60hf >= 0) || !(s.fhf > 0))
@@ -71,14 +58,13 @@ void wg_choose(Circuit *c) {
             int K = Ks[k];
             for (int r = 0; r < 3 && worst < best; r++) {
                 double e = 1e300;
-                for (int J = K; J >= 1; J = J > K - 3 ? J - 1 : J / 2) {
+                for (int J = K; J >= 1; J = wg_next_order(J, K)) {
                     if (err[r][J] < 0) {
                         wg_spec sr = s;
                         sr.fs = r ? rates[r] : c->rate;
                         wg_loss(&sr, &l);
                         wg_radiation(&sr, &l);
-                        err[r][J] = wg_design_order(&sr, J, sr.nmin, &l) < 0 ? 1e300
-                                  : l.err + (fabs(l.err1) > 0.01 ? 1e3 * fabs(l.err1) : 0);
+                        err[r][J] = wg_design_order(&sr, J, sr.nmin, &l) < 0 ? 1e300 : wg_score(&l);
                     }
                     e = fmin(e, err[r][J]);
                 }
