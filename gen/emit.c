@@ -11,13 +11,30 @@
 #include "gen.h"
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
-    tmpl_nl_pwl[], tmpl_nl_contact[], tmpl_nl_memory[], tmpl_waveguide[], tmpl_waveguide_state[];
+    tmpl_nl_pwl[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
 static const char *mem_args(int k, const NlSpec *nl) {
     if (nl->kind == NL_DIODE)
         return format("c_nl%d_0, c_nl%d_1, %d, NULL, NULL, 0", k, k, nl->pair);
     return format("0, 1, 0, mem_v%d, mem_i%d, %d", k, k, nl->npts);
+}
+
+/* Coefficient j of nonlinear element k: the sample loop's local, or the
+ * state's field. */
+static const char *nl_coef(int k, int j, bool local) {
+    return local ? format("c_nl%d_%d", k, j) : format("st->c_nl[%d]", 4 * k + j);
+}
+
+/* Initialiser of the el_law of a contact or nonlinear inductor k. */
+static const char *el_law_init(int k, const NlSpec *nl, bool local) {
+    if (nl->kind == NL_CONTACT)
+        return format("{1, %s, %s, %s, 0, 1, 0, 0, NULL, NULL}", nl_coef(k, 0, local), nl_coef(k, 1, local),
+                      nl_coef(k, 2, local));
+    if (nl->kind == NL_DIODE)
+        return format("{0, 0, 1, 0, %s, %s, %d, 0, NULL, NULL}", nl_coef(k, 0, local), nl_coef(k, 1, local),
+                      nl->pair);
+    return format("{0, 0, 1, 0, 0, 1, 0, %d, mem_v%d, mem_i%d}", nl->npts, k, k);
 }
 
 typedef struct Buf {
@@ -387,17 +404,27 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     if (nl->kind == NL_CONTACT && !nl->mutated)
         emit(o, "        int t_open%d;\n", k);
     emit(o, "        {\n");
-    if (nl->mutated) {
-        emit(o, "            const double t_v = mem_solve('%c', t_an%d, k_Rn%d, s_nX%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %s, %d);\n",
-             nl->mutated, k, k, k, k, k, mem_args(k, nl), tol, it);
-        if (nl->mutated == 'L')
-            emit(o, "            s_nX%d += (real)(0.5 * k_T * (t_v + s_nv%d));\n", k, k);
-        else
-            emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
+    if (nl->mutated == 'C') {
+        emit(o, "            const double t_v = mem_solve(t_an%d, k_Rn%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %s, %d);\n",
+             k, k, k, k, mem_args(k, nl), tol, it);
+        emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
         emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
         return;
     }
-    switch (nl->kind == NL_CONTACT ? SOLVER_NEWTON : solver_of(x, nl)) {
+    if (nl->mutated == 'L' || nl->kind == NL_CONTACT) { /* passive stepping of a stored energy: el_solve */
+        const char *X = nl->kind == NL_CONTACT ? format("s_nX%d - c_nl%d_3", k, k) : format("s_nX%d", k);
+        emit(o, "            const el_law t_L = %s;\n", el_law_init(k, nl, true));
+        emit(o, "            const double t_v = el_solve(&t_L, t_an%d, k_Rn%d, %s, s_nv%d, s_nf%d, 0.5 * k_T, %s, %d);\n",
+             k, k, X, k, k, tol, it);
+        emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
+        if (nl->kind == NL_CONTACT)
+            emit(o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n"
+                    "            (void)t_open%d;\n", k, k, k);
+        emit(o, "            s_nf%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
+        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
+        return;
+    }
+    switch (solver_of(x, nl)) {
     case SOLVER_PWL:
         emit(o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
         emit(o, "            (void)s_nv%d;\n", k);
@@ -408,16 +435,8 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
         emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
         break;
     default:
-        if (nl->kind == NL_CONTACT) {
-            emit(o, "            const double t_v = contact_solve(t_an%d, k_Rn%d, s_nX%d, s_nv%d, k_T, c_nl%d_0, c_nl%d_1, "
-                    "c_nl%d_2, c_nl%d_3, %s, %d);\n", k, k, k, k, k, k, k, k, tol, it);
-            emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
-            emit(o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n", k, k);
-            emit(o, "            (void)t_open%d;\n", k);
-        } else {
-            emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
-                 k, k, k, k, nl->pair, k, tol, it);
-        }
+        emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
+             k, k, k, k, nl->pair, k, tol, it);
         emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
         break;
     }
@@ -718,9 +737,11 @@ static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
         emit(o, "    (void)k_Rn%d;\n    (void)k_gn%d;\n", k, k);
         for (int j = 0; j < 4; j++)
             emit(o, "    const double c_nl%d_%d = st->c_nl[%d];\n    (void)c_nl%d_%d;\n", k, j, 4 * k + j, k, j);
-        emit(o, "    real s_nX%d = st->s_nX[%d], s_nv%d = st->s_nv[%d];\n", k, k, k, k);
-        emit(wb, "    st->s_nX[%d] = s_nX%d;\n    st->s_nv[%d] = s_nv%d;\n", k, k, k, k);
-        emit(fl, "        s_nX%d = flush(s_nX%d);\n        s_nv%d = flush(s_nv%d);\n", k, k, k, k);
+        emit(o, "    real s_nX%d = st->s_nX[%d], s_nv%d = st->s_nv[%d], s_nf%d = st->s_nf[%d];\n    (void)s_nf%d;\n", k,
+             k, k, k, k, k, k);
+        emit(wb, "    st->s_nX[%d] = s_nX%d;\n    st->s_nv[%d] = s_nv%d;\n    st->s_nf[%d] = s_nf%d;\n", k, k, k, k, k, k);
+        emit(fl, "        s_nX%d = flush(s_nX%d);\n        s_nv%d = flush(s_nv%d);\n        s_nf%d = flush(s_nf%d);\n", k,
+             k, k, k, k, k);
         if (x->pwl_n[k])
             emit(o, "    const real *const c_pa%d = st->c_pa + %d, *const c_pb%d = st->c_pb + %d, "
                     "*const c_ps%d = st->c_ps + %d;\n", k, x->pwl_off[k], k, x->pwl_off[k], k, x->pwl_off[k]);
@@ -795,6 +816,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
         if (e->nl->kind == NL_CONTACT || e->nl->mutated == 'L')
             emit(o, "    st->s_nX[%d] = (real)(%s - %s);\n", k, ic_node_value(x, 'x', e->n[0]),
                  ic_node_value(x, 'x', e->n[1]));
+        emit(probes, "        st->s_nf[%d] = (real)nl_force(st, %d);\n", k, k);
         emit(probes, "        st->s_nv[%d] = (real)((%s) - (%s));\n", k,
              e->n[0] ? format("x[%d]", e->n[0] - 1) : "0", e->n[1] ? format("x[%d]", e->n[1] - 1) : "0");
     }
@@ -912,11 +934,14 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
 
 static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *force) {
-    bool diode = false, omega = false, pwl = false, contact = false, memory = false;
+    bool diode = false, omega = false, pwl = false, contact = false, memory = false, inductor = false,
+         capacitor = false;
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
         if (e->nl->mutated) {
             memory = true;
+            inductor |= e->nl->mutated == 'L';
+            capacitor |= e->nl->mutated == 'C';
             if (e->nl->kind == NL_CURVE) {
                 Buf v = {0}, i = {0};
                 for (int j = 0; j < e->nl->npts; j++) {
@@ -933,8 +958,8 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
                      k, k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl));
         } else if (e->nl->kind == NL_CONTACT) {
             contact = true;
-            emit(force, "    if (k == %d) { double dX, dXd; return contact_f(st->s_nX[%d] - st->c_nl[%d], 0, "
-                        "st->c_nl[%d], st->c_nl[%d], 0, &dX, &dXd); }\n", k, k, 4 * k + 3, 4 * k, 4 * k + 1);
+            emit(force, "    if (k == %d) { const el_law L = %s; double d; return el_F(&L, st->s_nX[%d] - st->c_nl[%d], &d); }\n",
+                 k, el_law_init(k, e->nl, false), k, 4 * k + 3);
         } else if (x->pwl_n[k]) {
             pwl = true;
             Buf v = {0}, i = {0};
@@ -960,10 +985,12 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
         emit(kernels, "%s", tmpl_nl_omega);
     if (pwl)
         emit(kernels, "%s", tmpl_nl_pwl);
-    if (contact)
-        emit(kernels, "%s", tmpl_nl_contact);
     if (memory)
         emit(kernels, "%s", tmpl_nl_memory);
+    if (contact || inductor)
+        emit(kernels, "%s", tmpl_nl_passive);
+    if (capacitor)
+        emit(kernels, "%s", tmpl_nl_memcap);
 }
 
 /* ---- tables and descriptors ---- */
@@ -1085,6 +1112,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s c_nl[%d];    /* nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact) */\n"
         "    %s s_nX[%d];    /* contacts: x(n0) - x(n1), m */\n"
         "    %s s_nv[%d];    /* nonlinear edges: last voltage (velocity) across */\n"
+        "    %s s_nf[%d];    /* contacts, nonlinear inductors: last current (force) */\n"
         "    %s c_pa[%d];    /* piecewise-linear wave maps: a at the breakpoints */\n"
         "    %s c_pb[%d];    /* b at the breakpoints */\n"
         "    %s c_ps[%d];    /* slope db/da of each segment */\n"
@@ -1107,7 +1135,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    int w_piv[%d];",
         M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
         M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
-        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
+        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
         r, M1(x->nwv), M1(2 * c->nwgs), M1(c->nwgs), M1(x->nwt), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
         r, M1(x->nwf), r, M1(x->nsp), nd * nd, nd, nd);
 #undef M1

@@ -46,6 +46,8 @@ struct refsim {
     real *cx;         /* contact, nonlinear inductor: integral of its
                          voltage at the last sample (see has_flux) */
     real gscale;      /* largest conductance in the step matrix */
+    real *Rp;         /* contact, nonlinear inductor: the resistance the
+                         rest of the step network presents to it */
     int nl_maxit;     /* most Newton iterations one step took */
     long nl_iters;    /* Newton iterations over all steps */
     long nl_unconverged; /* steps that hit the iteration cap */
@@ -365,23 +367,103 @@ static real law_integral(const refsim *s, int e, real x) {
     return acc + 0.5 * (x - t) * (yt + law(s, e, x, &d));
 }
 
-/* Current of nonlinear element e at voltage v in the sample being
- * solved, and its slope di/dv in *g.  A contact's compression is its
- * integral at the last sample advanced by the trapezoidal rule to v, and
- * its compression rate is v itself.  Behind a mutator the law f of the
- * diode or curve gives i = f(X) with X the trapezoidal integral of v (R-L
- * type: a nonlinear inductor, X its flux), or the charge q = f(v), with
- * i the trapezoidal derivative of q (R-C type: a nonlinear capacitor). */
-static real nl_eval(const refsim *s, int e, real v, real *g) {
+/* Elastic force (current) of contact or nonlinear inductor e at u, its
+ * compression (contact) or flux, and its slope. */
+static real elastic(const refsim *s, int e, real u, real *dF) {
+    if (!is_contact(&s->c->elems[e]))
+        return law(s, e, u, dF);
+    const real *q = s->nlp + 4 * e;
+    *dF = 0.0;
+    if (!(u > 0.0))
+        return 0.0;
+    real p = q[0] * powl(u, q[1]);
+    *dF = q[1] * p / u;
+    return p;
+}
+
+/* Energy stored at u: the elastic force integrated from 0. */
+static real stored(const refsim *s, int e, real u) {
+    if (!is_contact(&s->c->elems[e]))
+        return law_integral(s, e, u);
+    const real *q = s->nlp + 4 * e;
+    return u > 0.0 ? q[0] * powl(u, q[1] + 1.0) / (q[1] + 1.0) : 0.0;
+}
+
+/* Whether the elastic law has a corner strictly inside (u0, u1) or at
+ * either end: the contact's 0, a curve's points. */
+static int corner_between(const refsim *s, int e, real u0, real u1) {
+    real lo = fminl(u0, u1), hi = fmaxl(u0, u1);
+    const NlSpec *nl = s->c->elems[e].nl;
+    if (nl->kind == NL_CONTACT)
+        return lo <= 0.0 && hi >= 0.0;
+    for (int j = 0; nl->kind == NL_CURVE && j < nl->npts; j++)
+        if ((real)nl->cv[j] >= lo && (real)nl->cv[j] <= hi)
+            return 1;
+    return 0;
+}
+
+/* Mean of the elastic force over [u0, u1]: the stored energy's difference
+ * over the distance or, where the ends lie within 1e-6 of their size
+ * with no corner between, three-point Gauss-Legendre (exact to degree
+ * five, so far below rounding there). */
+static real elastic_mean(const refsim *s, int e, real u0, real u1) {
+    real w = u1 - u0, d;
+    if (w == 0.0)
+        return elastic(s, e, u0, &d);
+    if (fabsl(w) > 1e-6L * fmaxl(fabsl(u0), fabsl(u1)) || corner_between(s, e, u0, u1))
+        return (stored(s, e, u1) - stored(s, e, u0)) / w;
+    real m = 0.5L * (u0 + u1), r = 0.5L * w * sqrtl(0.6L);
+    return (5.0L * elastic(s, e, m - r, &d) + 8.0L * elastic(s, e, m, &d) +
+            5.0L * elastic(s, e, m + r, &d)) / 18.0L;
+}
+
+/* Current of a contact or nonlinear inductor e at voltage v, and its
+ * slope.  Its coordinate u (compression or flux) moves by
+ * du = T/2 (v + v[n-1]); over the step it gives the network the energy
+ * du (i + i[n-1]) / 2 and stores stored(u1) - stored(u0) = du M.  The
+ * average current aims at (i[n-1] + phi) / 2, phi the elastic law at u1
+ * (a contact's times 1 + lambda v while that is positive), and is held
+ * within [M, M + du / (T R)] for du > 0 and [M + du / (T R), M] for
+ * du < 0, R = Rp[e]: passive, continuous and rising in v. */
+static real flux_eval(const refsim *s, int e, real v, real *g) {
     const NlSpec *nl = s->c->elems[e].nl;
     const real *q = s->nlp + 4 * e;
+    real h = 0.5 * s->T, ip = s->i[e], dF;
+    real u0 = s->cx[e] - (nl->kind == NL_CONTACT ? q[3] : 0.0);
+    real du = h * (v + s->v[e]), u1 = u0 + du;
+    real F1 = elastic(s, e, u1, &dF), phi = F1, dphi = dF * h;
+    if (nl->kind == NL_CONTACT) {
+        real m = 1.0 + q[2] * v;
+        phi = m > 0.0 ? F1 * m : 0.0;
+        dphi = m > 0.0 ? dF * h * m + F1 * q[2] : 0.0;
+    }
+    real M = elastic_mean(s, e, u0, u1), dM = du != 0.0 ? (F1 - M) / du * h : 0.5 * dF * h;
+    real kap = 1.0 / (s->T * s->Rp[e]);
+    real lo = du < 0.0 ? M + kap * du : M, hi = du > 0.0 ? M + kap * du : M;
+    real avg = 0.5 * (ip + phi), davg = 0.5 * dphi;
+    if (avg < lo) {
+        avg = lo;
+        davg = dM + (du < 0.0 ? kap * h : 0.0);
+    } else if (avg > hi) {
+        avg = hi;
+        davg = dM + (du > 0.0 ? kap * h : 0.0);
+    }
+    *g = 2.0 * davg;
+    return 2.0 * avg - ip;
+}
+
+/* Current of nonlinear element e at voltage v in the sample being
+ * solved, and its slope di/dv in *g.  A contact's compression and a
+ * nonlinear inductor's flux (behind an R-L mutator) are their integrals
+ * at the last sample advanced by the trapezoidal rule to v (flux_eval).
+ * Behind an R-C mutator the law f of the diode or curve gives the charge
+ * q = f(v), with i the trapezoidal derivative of q. */
+static real nl_eval(const refsim *s, int e, real v, real *g) {
+    const NlSpec *nl = s->c->elems[e].nl;
     real h = 0.5 * s->T, dy;
     *g = 0.0;
-    if (nl->mutated == 'L') {
-        real i = law(s, e, s->cx[e] + h * (v + s->v[e]), &dy);
-        *g = dy * h;
-        return i;
-    }
+    if (has_flux(&s->c->elems[e]))
+        return flux_eval(s, e, v, g);
     if (nl->mutated == 'C') {
         real d0, i = (law(s, e, v, &dy) - law(s, e, s->v[e], &d0)) / h - s->i[e];
         *g = dy / h;
@@ -391,15 +473,8 @@ static real nl_eval(const refsim *s, int e, real v, real *g) {
     case NL_DIODE:
     case NL_CURVE:
         return law(s, e, v, g);
-    case NL_CONTACT: {
-        real C = s->cx[e] + h * (v + s->v[e]) - q[3];
-        real d = 1.0 + q[2] * v;
-        if (!(C > 0.0) || !(d > 0.0))
-            return 0.0;
-        real p = q[0] * powl(C, q[1]);
-        *g = q[1] * p / C * d * h + p * q[2];
-        return p * d;
-    }
+    case NL_CONTACT: /* has_flux */
+        break;
     }
     return 0.0;
 }
@@ -526,6 +601,32 @@ static void nl_solve(refsim *s, real *rhs) {
     memcpy(rhs, x, sizeof(real) * (size_t)N);
 }
 
+/* The resistance between the nodes of each contact and nonlinear
+ * inductor that the linear step network presents (the other nonlinear
+ * elements open): the voltage a unit current into it makes.  Their
+ * passive law (nl_eval) limits how fast the force may return to the
+ * elastic law by it. */
+static void port_resistances(refsim *s) {
+    const Circuit *c = s->c;
+    int N = s->N;
+    for (int e = 0; e < c->nelems; e++) {
+        const Elem *el = &c->elems[e];
+        if (!has_flux(el) || self_loop(el))
+            continue;
+        memcpy(s->J, s->G, sizeof(real) * (size_t)N * (size_t)N);
+        memset(s->dx, 0, sizeof(real) * (size_t)N);
+        int a = el->n[0], b = el->n[1];
+        if (a)
+            s->dx[a - 1] = 1.0;
+        if (b)
+            s->dx[b - 1] = -1.0;
+        if (lu_factor(s->J, s->piv, N) != 0)
+            die("refsim: %s: no resistance at its port", el->name);
+        lu_solve(s->J, s->piv, N, s->dx);
+        s->Rp[e] = (a ? s->dx[a - 1] : 0.0) - (b ? s->dx[b - 1] : 0.0);
+    }
+}
+
 static void build_step_matrix(refsim *s) {
     const Circuit *c = s->c;
     int N = s->N;
@@ -576,6 +677,7 @@ static void build_step_matrix(refsim *s) {
         if (s->round_state)
             for (size_t k = 0; k < (size_t)N * (size_t)N; k++)
                 s->G[k] = rd(s->G[k]);
+        port_resistances(s);
         s->dirty = 0;
         return;
     }
@@ -792,6 +894,7 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     s->pv = calloc(nos, sizeof(real));
     s->nlp = calloc(4 * nes, sizeof(real));
     s->cx = calloc(nes, sizeof(real));
+    s->Rp = calloc(nes, sizeof(real));
     if (!s->br || !s->params || !s->val || !s->cdrv || !s->v || !s->i ||
         !s->d || !s->nodev || !s->px || !s->pv || !s->nlp || !s->cx) {
         refsim_free(s);
@@ -1069,6 +1172,7 @@ void refsim_free(refsim *s) {
     free(s->pv);
     free(s->nlp);
     free(s->cx);
+    free(s->Rp);
     free(s->G);
     free(s->J);
     free(s->x);
