@@ -11,7 +11,7 @@
 #include "gen.h"
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
-    tmpl_nl_pwl[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[];
+    tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
 static const char *mem_args(int k, const NlSpec *nl) {
@@ -404,9 +404,10 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
     if (nl->kind == NL_CONTACT && !nl->mutated)
         emit(o, "        int t_open%d;\n", k);
     emit(o, "        {\n");
-    if (nl->mutated == 'C') {
-        emit(o, "            const double t_v = mem_solve(t_an%d, k_Rn%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %s, %d);\n",
-             k, k, k, k, mem_args(k, nl), tol, it);
+    if (nl->mutated == 'C') { /* passive stepping of a stored charge: cap_solve */
+        emit(o, "            const el_law t_L = %s;\n            double t_v;\n", el_law_init(k, nl, true));
+        emit(o, "            s_nf%d = (real)cap_solve(&t_L, t_an%d, k_Rn%d, s_nf%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %d, &t_v);\n",
+             k, k, k, k, k, k, tol, it);
         emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
         emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
         return;
@@ -816,9 +817,12 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
         if (e->nl->kind == NL_CONTACT || e->nl->mutated == 'L')
             emit(o, "    st->s_nX[%d] = (real)(%s - %s);\n", k, ic_node_value(x, 'x', e->n[0]),
                  ic_node_value(x, 'x', e->n[1]));
-        emit(probes, "        st->s_nf[%d] = (real)nl_force(st, %d);\n", k, k);
         emit(probes, "        st->s_nv[%d] = (real)((%s) - (%s));\n", k,
              e->n[0] ? format("x[%d]", e->n[0] - 1) : "0", e->n[1] ? format("x[%d]", e->n[1] - 1) : "0");
+        /* the last force of a contact or inductor; a capacitor holds the
+         * charge of the voltage across it */
+        emit(probes, e->nl->mutated == 'C' ? "        st->s_nf[%d] = st->s_nv[%d];\n"
+                                           : "        st->s_nf[%d] = (real)nl_force(st, %d);\n", k, k);
     }
     int xp = 0;
     for (int k = 0; k < c->nouts; k++) {
@@ -863,7 +867,7 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
             emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d]; (void)c_nl%d_0; (void)c_nl%d_1; "
                     "E += mem_G(st->s_nX[%d], %s); }\n", k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl));
         if (e->nl->mutated == 'C')
-            emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d], v = st->s_nv[%d]; double d; "
+            emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d], v = st->s_nf[%d]; double d; "
                     "(void)c_nl%d_0; (void)c_nl%d_1; E += v * mem_g(v, %s, &d) - mem_G(v, %s); }\n",
                  k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl), mem_args(k, e->nl));
         if (e->nl->kind == NL_CONTACT)
@@ -987,6 +991,8 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
         emit(kernels, "%s", tmpl_nl_pwl);
     if (memory)
         emit(kernels, "%s", tmpl_nl_memory);
+    if (contact || memory)
+        emit(kernels, "%s", tmpl_nl_law);
     if (contact || inductor)
         emit(kernels, "%s", tmpl_nl_passive);
     if (capacitor)
@@ -1112,7 +1118,7 @@ static const char *state_fields(Ctx *x, int nd) {
         "    %s c_nl[%d];    /* nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact) */\n"
         "    %s s_nX[%d];    /* contacts: x(n0) - x(n1), m */\n"
         "    %s s_nv[%d];    /* nonlinear edges: last voltage (velocity) across */\n"
-        "    %s s_nf[%d];    /* contacts, nonlinear inductors: last current (force) */\n"
+        "    %s s_nf[%d];    /* contacts, nonlinear inductors: last current (force); capacitors: voltage of the charge */\n"
         "    %s c_pa[%d];    /* piecewise-linear wave maps: a at the breakpoints */\n"
         "    %s c_pb[%d];    /* b at the breakpoints */\n"
         "    %s c_ps[%d];    /* slope db/da of each segment */\n"

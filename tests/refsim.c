@@ -44,7 +44,9 @@ struct refsim {
     real *nlp;        /* 4 values per element: diode Is, n Vt, -, -;
                          contact k, alpha, lambda, gap */
     real *cx;         /* contact, nonlinear inductor: integral of its
-                         voltage at the last sample (see has_flux) */
+                         voltage at the last sample (see has_flux);
+                         nonlinear capacitor: the voltage of its law
+                         that gives its charge */
     real gscale;      /* largest conductance in the step matrix */
     real *Rp;         /* contact, nonlinear inductor: the resistance the
                          rest of the step network presents to it */
@@ -185,6 +187,8 @@ static int is_contact(const Elem *e) { return is_nl(e) && e->nl->kind == NL_CONT
 static int has_flux(const Elem *e) {
     return is_contact(e) || (is_nl(e) && e->nl->mutated == 'L');
 }
+
+static int is_nlcap(const Elem *e) { return is_nl(e) && e->nl->mutated == 'C'; }
 
 /* Whether a resistive solve may rely on element e to carry current: a
  * nonlinear element is left out (as if open) when it may conduct nothing
@@ -452,6 +456,88 @@ static real flux_eval(const refsim *s, int e, real v, real *g) {
     return 2.0 * avg - ip;
 }
 
+/* Nonlinear capacitor e (R-C mutator): its charge is law(u), u the
+ * voltage of its law, which moves from u0 = cx[e] to u1 over the step.
+ * It takes dq (v[n-1] + v) / 2 from the network, dq = law(u1) - law(u0),
+ * and stores dq M, M the mean over the charge of the law's voltage; the
+ * step's average voltage aims at (v[n-1] + u1) / 2 and is held within
+ * [M, M + dq R / T] for dq > 0, [M + dq R / T, M] for dq < 0 (the dual
+ * of flux_eval).  Returns the voltage across it, v = 2 vbar - v[n-1], and
+ * its slope in u1. */
+static real cap_volt(const refsim *s, int e, real u1, real *dv) {
+    real u0 = s->cx[e], d0, d1, q0 = law(s, e, u0, &d0), q1 = law(s, e, u1, &d1), dq = q1 - q0;
+    real M = u1, dM = 0.5;
+    if (dq != 0.0) {
+        if (fabsl(u1 - u0) > 1e-6L * fmaxl(fabsl(u0), fabsl(u1)) || corner_between(s, e, u0, u1)) {
+            /* E(q) = u law(u) - its integral */
+            M = (u1 * q1 - law_integral(s, e, u1) - u0 * q0 + law_integral(s, e, u0)) / dq;
+        } else { /* by parts, the law's mean by three-point Gauss-Legendre */
+            real m = 0.5L * (u0 + u1), r = 0.5L * (u1 - u0) * sqrtl(0.6L), d;
+            real mean = (5.0L * law(s, e, m - r, &d) + 8.0L * law(s, e, m, &d) + 5.0L * law(s, e, m + r, &d)) / 18.0L;
+            M = u1 - (u1 - u0) * (mean - q0) / dq;
+        }
+        dM = (u1 - M) / dq * d1;
+    }
+    real k = s->Rp[e] / s->T, vbar = 0.5 * (s->v[e] + u1), dvbar = 0.5;
+    real lo = dq < 0.0 ? M + k * dq : M, hi = dq > 0.0 ? M + k * dq : M;
+    if (vbar < lo) {
+        vbar = lo;
+        dvbar = dM + (dq < 0.0 ? k * d1 : 0.0);
+    } else if (vbar > hi) {
+        vbar = hi;
+        dvbar = dM + (dq > 0.0 ? k * d1 : 0.0);
+    }
+    *dv = 2.0 * dvbar;
+    return 2.0 * vbar - s->v[e];
+}
+
+/* The u1 whose cap_volt is v: cap_volt rises with u1, so bracketed by
+ * doubling, then Newton kept inside the bracket, to the last digit. */
+static real cap_law_voltage(const refsim *s, int e, real v) {
+    real dv, lo = s->cx[e], hi = lo, step = fabsl(v - s->v[e]) + 1e-9L * (1.0L + fabsl(v));
+    real f = cap_volt(s, e, lo, &dv) - v;
+    for (int k = 0; k < 200 && f != 0.0; k++, step *= 2.0L) {
+        if (f > 0.0) {
+            lo = hi - step;
+            if (cap_volt(s, e, lo, &dv) - v <= 0.0)
+                break;
+            hi = lo;
+        } else {
+            hi = lo + step;
+            if (cap_volt(s, e, hi, &dv) - v >= 0.0)
+                break;
+            lo = hi;
+        }
+    }
+    real u = f == 0.0 ? lo : 0.5L * (lo + hi);
+    for (int it = 0; it < 300 && f != 0.0 && lo < hi; it++) {
+        f = cap_volt(s, e, u, &dv) - v;
+        if (f == 0.0)
+            break;
+        if (f > 0.0)
+            hi = u;
+        else
+            lo = u;
+        real un = u - f / dv;
+        if (!(un > lo && un < hi))
+            un = 0.5L * (lo + hi);
+        if (un == u)
+            break;
+        u = un;
+    }
+    return u;
+}
+
+/* The current of nonlinear capacitor e at voltage v and its slope:
+ * i = 2 dq / T - i[n-1] at the u1 that gives v. */
+static real cap_eval(const refsim *s, int e, real v, real *g) {
+    real dv, d0, d1, u = cap_law_voltage(s, e, v);
+    real dq = law(s, e, u, &d1) - law(s, e, s->cx[e], &d0);
+    cap_volt(s, e, u, &dv);
+    *g = d1 / (0.5 * s->T) / dv;
+    return dq / (0.5 * s->T) - s->i[e];
+}
+
 /* Current of nonlinear element e at voltage v in the sample being
  * solved, and its slope di/dv in *g.  A contact's compression and a
  * nonlinear inductor's flux (behind an R-L mutator) are their integrals
@@ -460,15 +546,11 @@ static real flux_eval(const refsim *s, int e, real v, real *g) {
  * q = f(v), with i the trapezoidal derivative of q. */
 static real nl_eval(const refsim *s, int e, real v, real *g) {
     const NlSpec *nl = s->c->elems[e].nl;
-    real h = 0.5 * s->T, dy;
     *g = 0.0;
     if (has_flux(&s->c->elems[e]))
         return flux_eval(s, e, v, g);
-    if (nl->mutated == 'C') {
-        real d0, i = (law(s, e, v, &dy) - law(s, e, s->v[e], &d0)) / h - s->i[e];
-        *g = dy / h;
-        return i;
-    }
+    if (nl->mutated == 'C')
+        return cap_eval(s, e, v, g);
     switch (nl->kind) {
     case NL_DIODE:
     case NL_CURVE:
@@ -601,8 +683,8 @@ static void nl_solve(refsim *s, real *rhs) {
     memcpy(rhs, x, sizeof(real) * (size_t)N);
 }
 
-/* The resistance between the nodes of each contact and nonlinear
- * inductor that the linear step network presents (the other nonlinear
+/* The resistance between the nodes of each contact, nonlinear inductor
+ * and nonlinear capacitor that the linear step network presents (the other nonlinear
  * elements open): the voltage a unit current into it makes.  Their
  * passive law (nl_eval) limits how fast the force may return to the
  * elastic law by it. */
@@ -611,7 +693,7 @@ static void port_resistances(refsim *s) {
     int N = s->N;
     for (int e = 0; e < c->nelems; e++) {
         const Elem *el = &c->elems[e];
-        if (!has_flux(el) || self_loop(el))
+        if (!(has_flux(el) || is_nlcap(el)) || self_loop(el))
             continue;
         memcpy(s->J, s->G, sizeof(real) * (size_t)N * (size_t)N);
         memset(s->dx, 0, sizeof(real) * (size_t)N);
@@ -821,6 +903,8 @@ static void initial_state(refsim *s) {
         case E_NL:
             s->v[e] = vv;
             s->i[e] = nl_rest_current(s, e);
+            if (is_nlcap(el))
+                s->cx[e] = vv; /* charged to the voltage across it */
             break;
         default:
             break;
@@ -1059,6 +1143,8 @@ void refsim_step(refsim *s, const double *in, double *out) {
             real g, ii = self_loop(el) ? 0.0 : nl_eval(s, e, vv, &g);
             if (has_flux(el))
                 s->cx[e] += 0.5 * s->T * (vv + pv);
+            if (is_nlcap(el) && !self_loop(el))
+                s->cx[e] = cap_law_voltage(s, e, vv);
             s->v[e] = vv;
             s->i[e] = ii;
             break;
@@ -1121,8 +1207,8 @@ double refsim_energy(const refsim *s) {
                 E += q[0] * powl(C, q[1] + 1.0) / (q[1] + 1.0);
         } else if (is_nl(el) && el->nl->mutated == 'L') {
             E += law_integral(s, e, s->cx[e]);
-        } else if (is_nl(el) && el->nl->mutated == 'C') {
-            real d, v = s->v[e];
+        } else if (is_nlcap(el)) {
+            real d, v = s->cx[e];
             E += v * law(s, e, v, &d) - law_integral(s, e, v);
         }
     }
