@@ -461,9 +461,10 @@ static real flux_eval(const refsim *s, int e, real v, real *g) {
  * It takes dq (v[n-1] + v) / 2 from the network, dq = law(u1) - law(u0),
  * and stores dq M, M the mean over the charge of the law's voltage; the
  * step's average voltage aims at (v[n-1] + u1) / 2 and is held within
- * [M, M + dq R / T] for dq > 0, [M + dq R / T, M] for dq < 0 (the dual
- * of flux_eval).  Returns the voltage across it, v = 2 vbar - v[n-1], and
- * its slope in u1. */
+ * [M, M + far] while u rises, [M + far, M] while it falls, far the
+ * larger in size of dq R / T and (u1 - u0) / 2 (the dual of flux_eval;
+ * M = u1 where the charge does not move).  Returns the voltage across
+ * it, v = 2 vbar - v[n-1], and its slope in u1. */
 static real cap_volt(const refsim *s, int e, real u1, real *dv) {
     real u0 = s->cx[e], d0, d1, q0 = law(s, e, u0, &d0), q1 = law(s, e, u1, &d1), dq = q1 - q0;
     real M = u1, dM = 0.5;
@@ -478,14 +479,18 @@ static real cap_volt(const refsim *s, int e, real u1, real *dv) {
         }
         dM = (u1 - M) / dq * d1;
     }
-    real k = s->Rp[e] / s->T, vbar = 0.5 * (s->v[e] + u1), dvbar = 0.5;
-    real lo = dq < 0.0 ? M + k * dq : M, hi = dq > 0.0 ? M + k * dq : M;
+    /* the far end of the hold: M + dq R / T or M + (u1 - u0) / 2,
+     * whichever lies farther from M */
+    real k = s->Rp[e] / s->T, vbar = 0.5 * (s->v[e] + u1), dvbar = 0.5, w = u1 - u0;
+    real far = fabsl(k * dq) >= fabsl(0.5L * w) ? k * dq : 0.5L * w;
+    real dfar = fabsl(k * dq) >= fabsl(0.5L * w) ? k * d1 : 0.5L;
+    real lo = w < 0.0 ? M + far : M, hi = w > 0.0 ? M + far : M;
     if (vbar < lo) {
         vbar = lo;
-        dvbar = dM + (dq < 0.0 ? k * d1 : 0.0);
+        dvbar = dM + (w < 0.0 ? dfar : 0.0);
     } else if (vbar > hi) {
         vbar = hi;
-        dvbar = dM + (dq > 0.0 ? k * d1 : 0.0);
+        dvbar = dM + (w > 0.0 ? dfar : 0.0);
     }
     *dv = 2.0 * dvbar;
     return 2.0 * vbar - s->v[e];

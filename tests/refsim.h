@@ -41,12 +41,21 @@
  *     curve: linear interpolation of its points, the end segments
  *     extended; contact: X[n] = X[n-1] + T/2 (v[n] + v[n-1]) from
  *     X[-1] = x_ic(n0) - x_ic(n1) (the .ic x() values, 0 if none),
- *     compression C = X - gap, and i = k C^alpha (1 + lambda v) while
- *     C > 0 and 1 + lambda v > 0, else 0.  Behind a mutator
+ *     compression C = X - gap, elastic force F(C) = k C^alpha while
+ *     C > 0, else 0, stored energy U(C) its integral.  Behind a mutator
  *     (NlSpec.mutated) the diode's or curve's law f makes a nonlinear
- *     inductor, i = f(X) with the flux X integrated as a contact's (R-L
- *     type), or a nonlinear capacitor, charge f(v) and
- *     i[n] = (f(v[n]) - f(v[n-1])) 2/T - i[n-1] (R-C type).  Each sample
+ *     inductor, F = f(X) with the flux X integrated as a contact's (R-L
+ *     type), or a nonlinear capacitor, charge f(u) at the voltage u of
+ *     its law, i[n] = (f(u[n]) - f(u[n-1])) 2/T - i[n-1] (R-C type).
+ *     These three step passively: with R the resistance the rest of the
+ *     step network presents to the element and M the mean of the elastic
+ *     force over [C[n-1], C[n]] (U's difference over dC = C[n] - C[n-1]),
+ *     the average (i[n] + i[n-1]) / 2 aims at (i[n-1] + F(C[n]) (1 +
+ *     lambda v[n])) / 2 (the factor only for a contact while positive)
+ *     and is held within [M, M + dC / (T R)] for dC > 0 and
+ *     [M + dC / (T R), M] for dC < 0; a capacitor likewise holds the
+ *     average voltage, aiming at (v[n-1] + u[n]) / 2, within the mean
+ *     voltage over its charge and that plus dq R / T.  Each sample
  *     solves the whole
  *     nodal system with these laws by damped Newton from the last
  *     sample's solution: a step that raises the residual is halved (up to
@@ -60,7 +69,7 @@
  *     and a nonlinear inductor one of f(X) at its initial flux.
  *   - energy: sum of C v^2/2 + L i^2/2 at the last computed sample, plus
  *     k C^(alpha+1)/(alpha+1) for each contact with C > 0, F(X) for each
- *     nonlinear inductor and v f(v) - F(v) for each nonlinear capacitor,
+ *     nonlinear inductor and u f(u) - F(u) for each nonlinear capacitor,
  *     F being the integral of f from 0.
  *     work: sum over steps of -T * vbar * ibar over the sources, bars
  *     being averages of this and the previous sample, using the ideal part
