@@ -26,7 +26,8 @@ static const char *nl_coef(int k, int j, bool local) {
     return local ? format("c_nl%d_%d", k, j) : format("st->c_nl[%d]", 4 * k + j);
 }
 
-/* Initialiser of the el_law of a contact or nonlinear inductor k. */
+/* Initialiser of the el_law of nonlinear element k: a contact, or the
+ * diode or curve behind a mutator. */
 static const char *el_law_init(int k, const NlSpec *nl, bool local) {
     if (nl->kind == NL_CONTACT)
         return format("{1, %s, %s, %s, 0, 1, 0, 0, NULL, NULL}", nl_coef(k, 0, local), nl_coef(k, 1, local),

@@ -1,6 +1,7 @@
 /* refsim.c - trapezoidal-rule nodal simulation of a Circuit (see refsim.h). */
 #include "refsim.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -342,7 +343,9 @@ static real law(const refsim *s, int e, real x, real *dy) {
     real x0 = nl->cv[k], x1 = nl->cv[k + 1];
     real y0 = nl->ci[k], y1 = nl->ci[k + 1];
     *dy = (y1 - y0) / (x1 - x0);
-    return y0 + (x - x0) * *dy;
+    /* from the nearer end: near a point of the curve (the origin, where
+     * a network comes to rest) the value keeps its digits */
+    return fabsl(x - x0) <= fabsl(x - x1) ? y0 + (x - x0) * *dy : y1 + (x - x1) * *dy;
 }
 
 /* The integral of the law from 0 to x. */
@@ -496,12 +499,16 @@ static real cap_volt(const refsim *s, int e, real u1, real *dv) {
     return 2.0 * vbar - s->v[e];
 }
 
-/* The u1 whose cap_volt is v: cap_volt rises with u1, so bracketed by
- * doubling, then Newton kept inside the bracket, to the last digit. */
+/* The u1 whose cap_volt is v.  cap_volt rises with u1, and away from
+ * its hold u1 = v gives v, so: a bracket doubled outward from v in steps
+ * of the scale of v, u0 and v[n-1], then Newton kept inside it until a
+ * step is below 4 ulps of u1 (or the bracket's ends meet). */
 static real cap_law_voltage(const refsim *s, int e, real v) {
-    real dv, lo = s->cx[e], hi = lo, step = fabsl(v - s->v[e]) + 1e-9L * (1.0L + fabsl(v));
-    real f = cap_volt(s, e, lo, &dv) - v;
-    for (int k = 0; k < 200 && f != 0.0; k++, step *= 2.0L) {
+    real dv, u0 = s->cx[e], step = fabsl(v - u0) + fabsl(v - s->v[e]) + LDBL_EPSILON * fabsl(v) + 1e-300L;
+    real lo = v, hi = v, f = cap_volt(s, e, v, &dv) - v;
+    if (f == 0.0)
+        return v;
+    for (int k = 0; k < 300; k++, step *= 2.0L) {
         if (f > 0.0) {
             lo = hi - step;
             if (cap_volt(s, e, lo, &dv) - v <= 0.0)
@@ -514,8 +521,8 @@ static real cap_law_voltage(const refsim *s, int e, real v) {
             lo = hi;
         }
     }
-    real u = f == 0.0 ? lo : 0.5L * (lo + hi);
-    for (int it = 0; it < 300 && f != 0.0 && lo < hi; it++) {
+    real u = 0.5L * (lo + hi);
+    for (int it = 0; it < 200; it++) {
         f = cap_volt(s, e, u, &dv) - v;
         if (f == 0.0)
             break;
@@ -526,8 +533,8 @@ static real cap_law_voltage(const refsim *s, int e, real v) {
         real un = u - f / dv;
         if (!(un > lo && un < hi))
             un = 0.5L * (lo + hi);
-        if (un == u)
-            break;
+        if (fabsl(un - u) <= 4.0L * LDBL_EPSILON * fabsl(u) || !(lo < un && un < hi))
+            return un; /* converged, or the bracket is down to adjacent numbers */
         u = un;
     }
     return u;
