@@ -414,10 +414,15 @@ static void emit_nl_solve(Ctx *x, Buf *o, int k) {
         return;
     }
     if (nl->mutated == 'L' || nl->kind == NL_CONTACT) { /* passive stepping of a stored energy: el_solve */
-        const char *X = nl->kind == NL_CONTACT ? format("s_nX%d - c_nl%d_3", k, k) : format("s_nX%d", k);
+        const char *solve = format("el_solve(&t_L, t_an%d, k_Rn%d, t_X, s_nv%d, s_nf%d, 0.5 * k_T, %s, %d)", k, k, k,
+                                   k, tol, it);
         emit(o, "            const el_law t_L = %s;\n", el_law_init(k, nl, true));
-        emit(o, "            const double t_v = el_solve(&t_L, t_an%d, k_Rn%d, %s, s_nv%d, s_nf%d, 0.5 * k_T, %s, %d);\n",
-             k, k, X, k, k, tol, it);
+        if (nl->kind == NL_CONTACT) /* open with no force left, and staying open at v = a: a passes */
+            emit(o, "            const double t_X = s_nX%d - c_nl%d_3;\n"
+                    "            const double t_v = s_nf%d == 0 && !(t_X > 0) && !(t_X + 0.5 * k_T * (t_an%d + s_nv%d) > 0)\n"
+                    "                                   ? (double)t_an%d : %s;\n", k, k, k, k, k, k, solve);
+        else
+            emit(o, "            const double t_X = s_nX%d;\n            const double t_v = %s;\n", k, solve);
         emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
         if (nl->kind == NL_CONTACT)
             emit(o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n"
