@@ -58,7 +58,7 @@
 
 #include "benchlib.h"
 #include "gen.h"
-#include "wdrt_host.h"
+#include "wdrt.h"
 #include "wdvoice.h"
 #include "../tests/refsim.h"
 #include "../tests/testlib.h"

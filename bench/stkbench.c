@@ -34,7 +34,7 @@
 #include <string.h>
 
 #include "benchlib.h"
-#include "wdrt_host.h"
+#include "wdrt.h"
 #include "wdvoice.h"
 #include "../tests/testlib.h"
 

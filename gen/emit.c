@@ -1015,6 +1015,21 @@ static const char *c_string(const char *s) {
     emit(&b, "\"");
     return str(&b);
 }
+/* The params a waveguide's loop design depends on: the voice redesigns the
+ * loop when one moves, so a host steps them rather than ramping them
+ * (WDV_PARAM_STEP). */
+static uint64_t step_params(const Circuit *c) {
+    uint64_t mask = 0;
+    for (int w = 0; w < c->nwgs; w++) {
+        const Waveguide *g = &c->wgs[w];
+        mask |= expr_params(g->f0) | expr_params(g->Rp) | expr_params(g->B) | expr_params(g->fhf) |
+                (g->t60 ? expr_params(g->t60) : 0) | (g->t60hf ? expr_params(g->t60hf) : 0);
+        for (int j = 0; j < g->ntaps; j++)
+            mask |= expr_params(g->tap_pos[j]);
+    }
+    return mask;
+}
+
 
 static const char *descriptors(Ctx *x, char which) {
     const Circuit *c = x->c;
@@ -1035,13 +1050,14 @@ static const char *descriptors(Ctx *x, char which) {
             emit(&b, "%s{%s, \"%s\"}", i ? ", " : "", c_string(p->name), domain_unit(c->domain, fn));
         } else {
             const Param *p = &c->params[i];
-            emit(&b, "%s{%s, %s, %.17g, %s, %s}", i ? ", " : "", c_string(p->name), c_string(p->unit), p->def,
+            emit(&b, "%s{%s, %s, %.17g, %s, %s, %s}", i ? ", " : "", c_string(p->name), c_string(p->unit), p->def,
                  isfinite(p->min) ? format("%.17g", p->min) : "-1e308",
-                 isfinite(p->max) ? format("%.17g", p->max) : "1e308");
+                 isfinite(p->max) ? format("%.17g", p->max) : "1e308",
+                 (step_params(c) >> i) & 1 ? "WDV_PARAM_STEP" : "0");
         }
     }
     if (n == 0)
-        emit(&b, which == 'p' ? "{\"\", \"\", 0, 0, 0}" : "{\"\", \"\"}");
+        emit(&b, which == 'p' ? "{\"\", \"\", 0, 0, 0, 0}" : "{\"\", \"\"}");
     emit(&b, "}");
     return str(&b);
 }

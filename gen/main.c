@@ -7,7 +7,7 @@
 #include <unistd.h>
 
 #include "gen.h"
-#include "wdrt_host.h"
+#include "wdrt.h"
 
 enum { EXIT_NETLIST = 1, EXIT_USAGE = 2, EXIT_TOOL = 3 };
 

@@ -1,11 +1,11 @@
 /*
  * host.c - compiling, loading and rendering emitted voices.
  *
- * Implements runtime/wdrt_host.h except the WAV functions (sndio.c).
+ * Implements runtime/wdrt.h except the WAV functions (sndio.c).
  * None of this is real-time safe: it forks programs (the C compiler among
  * them), opens shared objects and allocates.
  */
-#include "wdrt_host.h"
+#include "wdrt.h"
 
 #include <dlfcn.h>
 #include <errno.h>
@@ -27,6 +27,8 @@ const char *wdrt_result_str(wdrt_result r)
     case WDRT_LOAD: return "could not load the voice (dlopen/dlsym)";
     case WDRT_IO: return "file could not be read or written";
     case WDRT_FORMAT: return "file is not in a readable format";
+    case WDRT_QUEUE_FULL: return "the event queue is full";
+    case WDRT_SYNTAX: return "syntax error";
     }
     return "unknown result";
 }

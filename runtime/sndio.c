@@ -1,10 +1,10 @@
 /*
  * sndio.c - WAV input and output through libsndfile.
  *
- * Implements the WAV functions of runtime/wdrt_host.h; the only file that
+ * Implements the WAV functions of runtime/wdrt.h; the only file that
  * sees sndfile.h.
  */
-#include "wdrt_host.h"
+#include "wdrt.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 1
+#define WDV_ABI_VERSION 2
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -32,7 +32,13 @@ typedef struct wdv_param {
     double def;       /* default value */
     double min;       /* set_param clamps to [min, max] */
     double max;
+    unsigned flags;   /* WDV_PARAM_* */
 } wdv_param;
+
+/* The voice takes a step of this param as it comes: a host sets it at the
+ * frame it names instead of ramping it (a change that redesigns part of the
+ * voice, such as a waveguide's loop, where a ramp would only cost). */
+#define WDV_PARAM_STEP 1u
 
 /* One initial-condition target: the velocity (or voltage) of a node, or
  * the displacement (or flux) of a node relative to ground. */

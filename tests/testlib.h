@@ -20,7 +20,7 @@
 
 #include "gen.h"
 #include "refsim.h"
-#include "wdrt_host.h"
+#include "wdrt.h"
 #include "wdvoice.h"
 
 /* ---- voices ---- */

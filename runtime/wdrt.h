@@ -1,0 +1,318 @@
+/*
+ * wdrt.h - libwdrt, the object runtime that wave-digital voices live in.
+ *
+ * The engine hosts pools of voices (compiled by wdc; see wdvoice.h), mixes
+ * them to mono or stereo and renders them in blocks of any length.  It owns
+ * all its memory from init on: one block, sized by get_size, laid out once
+ * and never grown.  Each internal block runs in phases: events, then
+ * sources, then the mix; timbre trees, surfaces, spatial layers and
+ * complexes add their objects to these phases.
+ *
+ * Events (strike, set a param, play a note from a pool, stop, gain) name the
+ * absolute frame at which they act and take effect at exactly that frame,
+ * whatever the lengths of the blocks the host renders.  One control thread
+ * (the producer) may post them while another thread processes: they travel
+ * through a lock-free single-producer, single-consumer queue.
+ *
+ * The engine models no more than a scene needs:
+ *   - sleep: a voice whose output has stayed below its quiet level for a
+ *     block and whose stored energy has fallen below its floor fades out
+ *     over one block and sleeps; a sleeping voice is not visited at all
+ *     until an event wakes it.  A played note that falls asleep frees its
+ *     instance.
+ *   - budget: each pool's voices cost so many ns per sample (measured at
+ *     init unless given).  Past the budget, the least important sounding
+ *     voices (lowest priority, then quietest) are stolen with a one-block
+ *     fade, or made virtual: they stop being computed and come back, with a
+ *     fade-in, when the budget has room again and they are still audible.
+ *
+ * Units: frames and samples at the engine's rate (Hz), gains linear,
+ * levels in the units of the voice's output times its gain, costs in ns per
+ * sample, times in seconds.  No global state: everything lives in an
+ * engine.  Functions say whether they may run on the audio thread.
+ */
+#ifndef WDRT_H
+#define WDRT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "wdvoice.h"
+
+typedef enum wdrt_result {
+    WDRT_OK = 0,
+    WDRT_ERROR = -1,         /* generic failure */
+    WDRT_INVALID_ARGS = -2,
+    WDRT_OUT_OF_MEMORY = -3,
+    WDRT_TOOLCHAIN = -4,     /* the C compiler (or wdc) failed */
+    WDRT_LOAD = -5,          /* dlopen/dlsym failed */
+    WDRT_IO = -6,            /* file could not be read or written */
+    WDRT_FORMAT = -7,        /* file is not in a readable format */
+    WDRT_QUEUE_FULL = -8,    /* the event queue has no room: post again later */
+    WDRT_SYNTAX = -9,        /* a scene or tree has an error (message given) */
+} wdrt_result;
+
+/* A constant string describing r.  Real-time safe. */
+const char *wdrt_result_str(wdrt_result r);
+
+/* Where the runtime's memory comes from.  alloc returns `size` bytes
+ * aligned to at least 16 bytes (NULL on failure); free takes what alloc
+ * returned.  NULL callbacks mean malloc/free. */
+typedef struct wdrt_alloc_callbacks {
+    void *user;
+    void *(*alloc)(size_t size, void *user);
+    void (*free)(void *p, void *user);
+} wdrt_alloc_callbacks;
+
+/* ---- the engine ---------------------------------------------------- */
+
+typedef struct wdrt_engine wdrt_engine;
+
+/* A sounding thing events are addressed to: a standing voice of an owned
+ * pool, a note played from a pool, or a whole pool (every voice in it, and
+ * the param values later notes start from).  0 is no voice. */
+typedef uint32_t wdrt_voice;
+
+/* Most (id, value) pairs one strike carries. */
+#define WDRT_STRIKE_MAX 16
+
+/* One pool of instances of a voice class. */
+typedef struct wdrt_pool_config {
+    const wdv_class *cls;
+    int voices;       /* instances, sized at init (>= 1) */
+    int owned;        /* 1: standing voices, addressed by wdrt_engine_voice
+                         and awake from the start; 0: notes are played
+                         from the pool with wdrt_engine_play */
+    int output;       /* the voice output that is heard (index) */
+    double gain;      /* linear gain of every voice of the pool */
+    double pan;       /* stereo position, -1 left .. 1 right, constant power */
+    int priority;     /* higher matters more when the budget is short */
+    double cost_ns;   /* ns per sample of one voice; 0: measured at init */
+    double quiet;     /* output level below which a voice may sleep
+                         (absolute, after gain); default 1e-5 (-100 dB) */
+    double floor_db;  /* stored energy below which a voice may sleep, in dB
+                         of the energy it had after its last strike (or at
+                         init); default -100 */
+    int virtualize;   /* past the budget: 1 made virtual, 0 stolen */
+    int spares;       /* extra instances that carry the fade-out of a voice
+                         stolen to play a new note; default 2 */
+} wdrt_pool_config;
+
+/* Defaults for a pool of `voices` instances of cls, played as notes.
+ * Real-time safe. */
+wdrt_pool_config wdrt_pool_config_init(const wdv_class *cls, int voices);
+
+typedef struct wdrt_engine_config {
+    double rate;      /* sample rate, Hz */
+    int channels;     /* 1 (mono) or 2 (stereo), interleaved */
+    int block;        /* internal block, frames: the length of fades and
+                         param ramps; default 64, at most 4096 */
+    int queue;        /* events the control queue holds; default 4096 */
+    int pending;      /* events waiting for their frame; default 4096 */
+    double budget_ns; /* ns per sample all voices may cost; 0: no budget */
+    int sleep;        /* 1: quiet voices sleep (default); 0: never */
+    int npools;
+    const wdrt_pool_config *pools;
+} wdrt_engine_config;
+
+/* Defaults: 64-frame blocks, queues of 4096, no budget, sleep on.
+ * Real-time safe. */
+wdrt_engine_config wdrt_engine_config_init(double rate, int channels,
+                                           int npools,
+                                           const wdrt_pool_config *pools);
+
+/* Bytes an engine for cfg needs (at most 64 of them for alignment).
+ * Not real-time safe when a pool's cost is measured (cost_ns 0) elsewhere;
+ * this call itself only computes. */
+wdrt_result wdrt_engine_get_size(const wdrt_engine_config *cfg, size_t *size);
+
+/* Makes an engine in `mem` (get_size bytes, any alignment): initialises
+ * every instance (the class's init, at the engine's rate) and measures
+ * the cost of classes that have none given, by running a scratch instance
+ * for about 10 ms.  Not real-time safe. */
+wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg,
+                                      void *mem, wdrt_engine **engine);
+/* The same in memory from alloc (NULL: malloc).  Not real-time safe. */
+wdrt_result wdrt_engine_init(const wdrt_engine_config *cfg,
+                             const wdrt_alloc_callbacks *alloc,
+                             wdrt_engine **engine);
+/* Ends an engine; frees its memory when it came from wdrt_engine_init
+ * (pass the same alloc).  Not real-time safe. */
+void wdrt_engine_uninit(wdrt_engine *e, const wdrt_alloc_callbacks *alloc);
+
+/* Renders nframes (any number) into out, interleaved channels, replacing
+ * what was there.  Events due in these frames take effect at their frame.
+ * Real-time safe: no allocation, locks, I/O or unbounded loops. */
+void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes);
+
+/* Frames rendered so far: the frame the next process call starts at.
+ * Any thread. */
+uint64_t wdrt_engine_time(const wdrt_engine *e);
+
+/* Handles.  wdrt_engine_voice: standing voice `index` of owned pool
+ * `pool`; wdrt_engine_pool: the whole pool.  0 for a bad index.  Any
+ * thread. */
+wdrt_voice wdrt_engine_voice(const wdrt_engine *e, int pool, int index);
+wdrt_voice wdrt_engine_pool(const wdrt_engine *e, int pool);
+
+/* Control: each posts an event that acts at absolute frame `frame` (a
+ * frame already rendered means the start of the next block; such events
+ * are counted late).  Only one thread may post, the producer; it may be
+ * the thread that processes.  Events at one frame act in the order
+ * posted.  Return WDRT_OK, WDRT_INVALID_ARGS, or WDRT_QUEUE_FULL (nothing
+ * was posted).  Real-time safe (lock-free, no allocation). */
+
+/* A strike: wdv_class.set_ic with the given targets (at most
+ * WDRT_STRIKE_MAX); wakes the voice.  To a pool: every voice in it. */
+wdrt_result wdrt_engine_strike(wdrt_engine *e, uint64_t frame, wdrt_voice v,
+                               int n, const int *ids, const double *values);
+/* Sets param `param`: ramped linearly over one block from the value it
+ * has, or stepped when the voice flags the param WDV_PARAM_STEP.  To a
+ * pool: every voice in it and every note played from it later. */
+wdrt_result wdrt_engine_set(wdrt_engine *e, uint64_t frame, wdrt_voice v,
+                            int param, double value);
+/* The linear gain of a voice (or pool), ramped over one block. */
+wdrt_result wdrt_engine_gain(wdrt_engine *e, uint64_t frame, wdrt_voice v,
+                             double gain);
+/* Plays a note from (not owned) pool `pool`: takes a free instance in the
+ * state init left it in, with the pool's current params, and gives it
+ * `gain` (linear) and `priority` (added to the pool's).  Follow it with
+ * set and strike events to *note at the same frame.  A full pool steals
+ * its least important voice, which fades out over one block on a spare
+ * instance. */
+wdrt_result wdrt_engine_play(wdrt_engine *e, uint64_t frame, int pool,
+                             double gain, int priority, wdrt_voice *note);
+/* Stops a voice, a note or every voice of a pool: fades out over one
+ * block; a note frees its instance, a standing voice returns to the state
+ * init left it in and sleeps. */
+wdrt_result wdrt_engine_stop(wdrt_engine *e, uint64_t frame, wdrt_voice v);
+
+/* Feeds input `k` of standing voice v from `samples`, which must hold the
+ * frames of every later process call until bound again (NULL: silence):
+ * a host that renders nframes passes nframes more samples each call.
+ * A voice whose input is not silent is awake.  Call it from the thread
+ * that processes, between process calls.  Real-time safe. */
+wdrt_result wdrt_engine_bind_input(wdrt_engine *e, wdrt_voice v, int k,
+                                   const double *samples);
+
+typedef struct wdrt_engine_stats {
+    uint64_t frames;     /* rendered so far */
+    int awake;           /* voices computed in the last block */
+    int fading;          /* of those, fading in or out */
+    int asleep;          /* standing voices asleep */
+    int virtual_;        /* voices made virtual */
+    int free;            /* pool instances free to play */
+    double cost_ns;      /* cost of the voices computed, ns per sample */
+    double budget_ns;    /* the budget (0: none) */
+    uint64_t events;     /* events that took effect */
+    uint64_t late;       /* of those, after the frame they named */
+    uint64_t dropped;    /* events to notes that had ended */
+    uint64_t sleeps, wakes, steals, virtualized, revived;
+    uint64_t cuts;       /* voices stolen with no spare to fade on */
+} wdrt_engine_stats;
+
+/* Counters since init.  Call from the thread that processes, or when it
+ * is not running.  Real-time safe. */
+void wdrt_engine_get_stats(const wdrt_engine *e, wdrt_engine_stats *s);
+
+/* The cost in ns per sample of one voice of `pool` (measured or given). */
+double wdrt_engine_pool_cost(const wdrt_engine *e, int pool);
+
+/* ---- scenes (.wds) ------------------------------------------------- */
+
+/* A scene read from a .wds file: objects and a timeline (see README).
+ * Loading checks the syntax and the forms; binding each voice's class
+ * checks the names of params and strike targets; rendering runs an
+ * engine.  None of this is real-time safe. */
+typedef struct wdrt_scene wdrt_scene;
+
+/* Reads and checks a scene.  On an error returns WDRT_SYNTAX (or
+ * WDRT_IO) and writes "FILE:LINE:COL: error: message" (with the line and
+ * a caret) into err. */
+wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err,
+                            size_t errlen);
+void wdrt_scene_free(wdrt_scene *s);
+
+/* The voices the scene names: their count, and for each its name and
+ * the netlist's path (relative paths resolved against the scene's
+ * folder). */
+int wdrt_scene_nvoices(const wdrt_scene *s);
+const char *wdrt_scene_voice_name(const wdrt_scene *s, int i);
+const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i);
+
+/* Gives voice i its class; checks every param and strike target the scene
+ * names for it (WDRT_SYNTAX with the position in err). */
+wdrt_result wdrt_scene_bind(wdrt_scene *s, int i, const wdv_class *cls,
+                            char *err, size_t errlen);
+
+/* Overrides of the scene's own settings for wdrt_scene_render; zero
+ * fields keep the scene's. */
+typedef struct wdrt_render_opts {
+    double seconds;   /* length */
+    double rate;      /* Hz */
+    int nosleep;      /* 1: voices never sleep */
+    double budget_ns; /* ns per sample */
+    /* called every so often with the fraction done (0..1, or a negative
+     * number of seconds when the end is not known) */
+    void (*progress)(double done, void *user);
+    void *user;
+} wdrt_render_opts;
+
+/* Renders a bound scene into *frames (interleaved, *nch channels, malloc'ed;
+ * the caller frees), at *rate Hz.  Statistics of the engine in *stats when
+ * not NULL. */
+wdrt_result wdrt_scene_render(const wdrt_scene *s, const wdrt_render_opts *o,
+                              double **frames, long *nframes, int *nch,
+                              double *rate, wdrt_engine_stats *stats);
+
+/* ---- voices from files, and audio files ---------------------------- */
+
+/* Nothing below is real-time safe: these functions compile, load,
+ * allocate and do file I/O. */
+
+/* A voice class loaded from a shared object. */
+typedef struct wdrt_voice_lib {
+    void *handle;            /* dlopen handle */
+    const wdv_class *cls;    /* NAME_class in the object */
+} wdrt_voice_lib;
+
+/* Runs the program argv[0] (looked up in PATH unless the name has a
+ * slash) with the NULL-terminated argument list argv, and waits for it to
+ * end.  With out_fd < 0 the program writes to our stdout and stderr;
+ * otherwise both its stdout and its stderr go to the file descriptor
+ * out_fd (STDERR_FILENO: everything to our stderr).  *status (if not NULL)
+ * gets its exit status, 128 + N if signal N ended it, or 127 if it could
+ * not be started (with a message on its stderr).  Returns WDRT_OK once the
+ * program has been waited for, whatever its status; WDRT_INVALID_ARGS, or
+ * WDRT_ERROR if fork or waitpid failed.  Flushes all stdio streams first.
+ * Forks and blocks until the program ends: not real-time safe. */
+wdrt_result wdrt_spawn(char *const argv[], int out_fd, int *status);
+
+/* Compiles the C file `csrc` into the shared object `so` with the compiler
+ * `cc` (NULL: $CC, or "cc") and extra flags `cflags` (NULL: "-O2").  The
+ * compiler's messages go to stderr.  Allocates; not real-time safe. */
+wdrt_result wdrt_voice_compile(const char *csrc, const char *so,
+                               const char *cc, const char *cflags);
+
+/* Loads `so` and finds the class `NAME_class`. */
+wdrt_result wdrt_voice_open(const char *so, const char *name,
+                            wdrt_voice_lib *lib);
+void wdrt_voice_close(wdrt_voice_lib *lib);
+
+/* Writes nframes of nch interleaved channels as 32-bit float WAV at rate
+ * fs (Hz). */
+wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
+                           const double *frames, long nframes);
+
+/* Reads a WAV (any libsndfile format) as interleaved doubles; *frames is
+ * malloc'ed and freed by the caller. */
+wdrt_result wdrt_wav_read(const char *path, int *nch, double *fs,
+                          double **frames, long *nframes);
+
+/* Renders nframes of a voice instance into out[k] (one buffer per output)
+ * from in[k] (one per input; NULL entries read silence), in blocks of at
+ * most `block` frames. */
+void wdrt_render(const wdv_class *cls, void *state, const double *const *in,
+                 double *const *out, long nframes, int block);
+
+#endif
