@@ -16,8 +16,8 @@
  *
  * The engine models no more than a scene needs:
  *   - sleep: a voice whose output has stayed below its quiet level for a
- *     block and whose stored energy has fallen below its floor fades out
- *     over one block and sleeps; a sleeping voice is not visited at all
+ *     while and whose stored energy has fallen below its floor (or stays
+ *     put) fades out over one block and sleeps; a sleeping voice is not visited at all
  *     until an event wakes it.  A played note that falls asleep frees its
  *     instance.
  *   - budget: each pool's voices cost so many ns per sample (measured at
@@ -93,6 +93,12 @@ typedef struct wdrt_pool_config {
     double floor_db;  /* stored energy below which a voice may sleep, in dB
                          of the energy it had after its last strike (or at
                          init); default -100 */
+    double hold;      /* s the output must stay quiet before a voice may
+                         sleep; default 0.1.  At its end the voice sleeps
+                         if its energy is below the floor, or has not
+                         moved (to 1e-6) since the quiet began: energy
+                         that stays put in a quiet voice (a hammer flying
+                         off after its strike) is energy it never sounds */
     int virtualize;   /* past the budget: 1 made virtual, 0 stolen */
     int spares;       /* extra instances that carry the fade-out of a voice
                          stolen to play a new note; default 2 */
@@ -187,11 +193,11 @@ wdrt_result wdrt_engine_play(wdrt_engine *e, uint64_t frame, int pool,
  * init left it in and sleeps. */
 wdrt_result wdrt_engine_stop(wdrt_engine *e, uint64_t frame, wdrt_voice v);
 
-/* Feeds input `k` of standing voice v from `samples`, which must hold the
- * frames of every later process call until bound again (NULL: silence):
- * a host that renders nframes passes nframes more samples each call.
- * A voice whose input is not silent is awake.  Call it from the thread
- * that processes, between process calls.  Real-time safe. */
+/* Feeds input `k` of standing voice v from `samples` during the next
+ * process call only: it must hold that call's nframes samples; bind again
+ * before each call (unbound inputs are silent).  A voice whose input is
+ * not silent is awake.  Call it from the thread that processes, between
+ * process calls.  Real-time safe. */
 wdrt_result wdrt_engine_bind_input(wdrt_engine *e, wdrt_voice v, int k,
                                    const double *samples);
 

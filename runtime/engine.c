@@ -1,0 +1,1271 @@
+/*
+ * engine.c - the voice host: pools of voice instances, sample-accurate
+ * events through a lock-free queue, sleep and wake, and a cost budget.
+ *
+ * Implements the engine part of runtime/wdrt.h.  Time is cut on a fixed
+ * grid of `block` frames counted from frame 0, whatever lengths the host
+ * asks for, so a render does not depend on how it was cut into process
+ * calls; a process call that ends inside a grid block renders part of it.
+ * Within a grid block each voice renders in segments between the frames at
+ * which its events (and param-ramp steps) act.
+ *
+ * Phases of a (sub-)block: take events from the queue into a heap ordered
+ * by (frame, post order); resolve those due in this block, in order,
+ * onto per-voice and per-pool chains (plays take instances here);
+ * render each awake voice along its chains and mix it; at the end of a
+ * grid block, put quiet voices to sleep and keep the cost within budget.
+ */
+#include "wdrt.h"
+
+#include <assert.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define MAX_BLOCK 4096
+#define RAMP_STEPS 16  /* a param ramp sets the voice this many times at most */
+#define GRACE_BLOCKS 4 /* a new note sounds this many blocks before it can be stolen */
+#define SEQ_BITS 22
+#define SEQ_MASK ((1u << SEQ_BITS) - 1)
+#define MAX_POOLS 1000
+
+enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP };
+enum { M_FREE, M_AWAKE, M_ASLEEP, M_VIRTUAL };
+enum { A_NONE, A_SLEEP, A_FREE, A_VIRTUAL, A_RESET };
+
+typedef struct ev {
+    uint64_t frame;  /* absolute frame it acts at */
+    uint64_t seq;    /* post order */
+    int type;        /* EV_* */
+    int n;           /* EV_STRIKE: pairs; EV_SET: param; EV_PLAY: priority */
+    int pool;        /* EV_PLAY */
+    int off;         /* offset in the block being rendered */
+    int next;        /* next event of the same chain, or -1 */
+    wdrt_voice v;    /* target (EV_PLAY: the new note) */
+    double value;    /* EV_SET, EV_GAIN: the value; EV_PLAY: gain */
+    int ids[WDRT_STRIKE_MAX];
+    double vals[WDRT_STRIKE_MAX];
+} ev;
+
+/* A linear ramp: v moves by step for `left` more frames, ending at `to`. */
+typedef struct ramp {
+    double v, to, step;
+    int left;
+} ramp;
+
+/* A param on its way to `to`: set at frames next, next + every, ... */
+typedef struct pramp {
+    double from, to;
+    int done, steps, every;
+    uint64_t next;
+} pramp;
+
+typedef struct inst {
+    unsigned char *st; /* the voice's state */
+    pramp *pr;         /* one per param */
+    const double **in; /* bound inputs, per input (standing voices) */
+    int pool;
+    int mode;          /* M_* */
+    int spare;         /* carries fade-outs of stolen notes only */
+    int after;         /* A_*: what the end of a fade-out does */
+    int act;           /* index in the active list, or -1 */
+    int start;         /* offset in this block it renders from */
+    int chain, tail;   /* its events in this block */
+    int age;           /* grid blocks since it started sounding */
+    int priority;
+    int nramps;        /* params ramping */
+    int hasin;         /* some input is bound */
+    wdrt_voice note;   /* the handle it answers to; 0 when free */
+    double note_gain;  /* play gain, times which the pool's gain applies */
+    ramp gain, fade;
+    double peak;       /* largest |output| heard in this grid block */
+    double level;      /* audibility: peaks held with a 50 ms release */
+    double last;       /* level one grid block ago */
+    double eref;       /* energy after its last strike (or init) */
+    double equiet;     /* energy when its output fell quiet */
+    int quiet;         /* grid blocks its output has been quiet */
+    double vest, vdec; /* virtual: estimated level and its decay per block */
+} inst;
+
+typedef struct pool {
+    wdrt_pool_config cfg;
+    int first, nspare;     /* voices at [first, first + cfg.voices), then spares */
+    unsigned char *tmpl;   /* a state as init left it */
+    double *param;         /* values notes start from */
+    double gain;           /* the pool's gain, ramped into every voice */
+    double cost;           /* ns per sample of one voice */
+    uint32_t next_seq;     /* producer: the next note's sequence number */
+    int chain, tail;       /* pool-wide events in this block */
+} pool;
+
+struct wdrt_engine {
+    double fs;
+    int nch, B, npools, ninst;
+    pool *pools;
+    inst *inst;
+    size_t stride;         /* bytes between instance states */
+    /* the queue: the producer writes head, the consumer tail */
+    ev *q;
+    uint32_t qmask, qhead, qtail;
+    uint64_t seq;          /* producer: post order */
+    ev *heap;
+    int nheap, cap;
+    ev *blk;               /* this block's events, chained */
+    int nblk;
+    int *active, nactive;
+    int *virt, nvirt;
+    int *inputs, ninputs;  /* standing voices with bound inputs */
+    int *touched, ntouched; /* pools with events chained in this block */
+    double *mix;           /* B * nch */
+    double *obuf, *zero;   /* maxout * B outputs; B zeros */
+    double **optr;
+    const double **iptr;
+    int maxout, maxin;
+    uint64_t time;         /* frames rendered (atomic) */
+    double budget, rel;
+    int sleep;
+    int from_alloc;
+    void *base;            /* what init's allocation returned */
+    wdrt_engine_stats s;
+};
+
+/* ---- memory layout ---- */
+
+typedef struct layout {
+    size_t engine, pools, inst, params, pramps, inptrs, states, tmpls, q, heap, blk, active, virt, inputs, touched, mix,
+        obuf, zero, optr, iptr, total;
+    size_t stride;
+    int ninst, nparams, nin, maxout, maxin, qcap;
+} layout;
+
+static size_t up(size_t x, size_t a) { return (x + a - 1) / a * a; }
+
+static uint32_t pow2(int n) {
+    uint32_t p = 1;
+    while ((int)p < n)
+        p <<= 1;
+    return p;
+}
+
+static int pool_spares(const wdrt_pool_config *p) { return p->owned ? 0 : p->spares; }
+
+/* One place computes where everything lives, for get_size and init. */
+static void get_layout(const wdrt_engine_config *c, layout *L) {
+    memset(L, 0, sizeof *L);
+    size_t maxstate = 64;
+    for (int i = 0; i < c->npools; i++) {
+        const wdrt_pool_config *p = &c->pools[i];
+        int n = p->voices + pool_spares(p);
+        L->ninst += n;
+        L->nparams += n * p->cls->n_params + p->cls->n_params;
+        if (p->owned)
+            L->nin += n * p->cls->n_inputs;
+        if (p->cls->state_size > maxstate)
+            maxstate = p->cls->state_size;
+        if (p->cls->n_outputs > L->maxout)
+            L->maxout = p->cls->n_outputs;
+        if (p->cls->n_inputs > L->maxin)
+            L->maxin = p->cls->n_inputs;
+    }
+    L->stride = up(maxstate, 64);
+    L->qcap = (int)pow2(c->queue);
+    size_t o = 0;
+#define PLACE(field, bytes, align) (o = up(o, align), L->field = o, o += (bytes))
+    PLACE(engine, sizeof(wdrt_engine), 64);
+    PLACE(pools, sizeof(pool) * (size_t)c->npools, 16);
+    PLACE(inst, sizeof(inst) * (size_t)L->ninst, 16);
+    PLACE(params, sizeof(double) * (size_t)L->nparams, 16);
+    PLACE(pramps, sizeof(pramp) * (size_t)L->nparams, 16);
+    PLACE(inptrs, sizeof(double *) * (size_t)L->nin, 16);
+    PLACE(states, L->stride * (size_t)L->ninst, 64);
+    PLACE(tmpls, L->stride * (size_t)c->npools, 64);
+    PLACE(q, sizeof(ev) * (size_t)L->qcap, 16);
+    PLACE(heap, sizeof(ev) * (size_t)c->pending, 16);
+    PLACE(blk, sizeof(ev) * (size_t)c->pending, 16);
+    PLACE(active, sizeof(int) * (size_t)L->ninst, 16);
+    PLACE(virt, sizeof(int) * (size_t)L->ninst, 16);
+    PLACE(inputs, sizeof(int) * (size_t)L->ninst, 16);
+    PLACE(touched, sizeof(int) * (size_t)(c->npools + 1), 16);
+    PLACE(mix, sizeof(double) * (size_t)c->block * (size_t)c->channels, 64);
+    PLACE(obuf, sizeof(double) * (size_t)c->block * (size_t)(L->maxout ? L->maxout : 1), 64);
+    PLACE(zero, sizeof(double) * (size_t)c->block, 64);
+    PLACE(optr, sizeof(double *) * (size_t)(L->maxout + 1), 16);
+    PLACE(iptr, sizeof(double *) * (size_t)(L->maxin + 1), 16);
+#undef PLACE
+    L->total = o;
+}
+
+/* ---- configs ---- */
+
+wdrt_pool_config wdrt_pool_config_init(const wdv_class *cls, int voices) {
+    wdrt_pool_config p;
+    memset(&p, 0, sizeof p);
+    p.cls = cls;
+    p.voices = voices;
+    p.gain = 1;
+    p.quiet = 1e-5;
+    p.floor_db = -100;
+    p.hold = 0.1;
+    p.spares = 2;
+    return p;
+}
+
+wdrt_engine_config wdrt_engine_config_init(double rate, int channels, int npools, const wdrt_pool_config *pools) {
+    wdrt_engine_config c;
+    memset(&c, 0, sizeof c);
+    c.rate = rate;
+    c.channels = channels;
+    c.block = 64;
+    c.queue = 4096;
+    c.pending = 4096;
+    c.sleep = 1;
+    c.npools = npools;
+    c.pools = pools;
+    return c;
+}
+
+static wdrt_result check_config(const wdrt_engine_config *c) {
+    if (!c || !(c->rate >= 1 && c->rate <= 1e7) || (c->channels != 1 && c->channels != 2) || c->block < 1 ||
+        c->block > MAX_BLOCK || c->queue < 1 || c->queue > (1 << 24) || c->pending < 1 || c->pending > (1 << 24) ||
+        !(c->budget_ns >= 0) || c->npools < 0 || c->npools > MAX_POOLS || (c->npools && !c->pools))
+        return WDRT_INVALID_ARGS;
+    for (int i = 0; i < c->npools; i++) {
+        const wdrt_pool_config *p = &c->pools[i];
+        if (!p->cls || p->cls->abi_version != WDV_ABI_VERSION || p->voices < 1 || p->voices > (int)(SEQ_MASK / 2) ||
+            p->spares < 0 || p->spares > 64 || p->output < 0 || p->output >= p->cls->n_outputs ||
+            !isfinite(p->gain) || !(p->pan >= -1 && p->pan <= 1) || !(p->cost_ns >= 0) || !(p->quiet >= 0) ||
+            !isfinite(p->floor_db) || !(p->hold >= 0 && p->hold <= 3600) || p->cls->n_params > 64 || p->cls->n_inputs > 64 || p->cls->n_outputs > 64)
+            return WDRT_INVALID_ARGS;
+    }
+    return WDRT_OK;
+}
+
+wdrt_result wdrt_engine_get_size(const wdrt_engine_config *cfg, size_t *size) {
+    if (!size || check_config(cfg) != WDRT_OK)
+        return WDRT_INVALID_ARGS;
+    layout L;
+    get_layout(cfg, &L);
+    *size = L.total + 64;
+    return WDRT_OK;
+}
+
+/* ---- set-up ---- */
+
+static double now_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e9 + ts.tv_nsec;
+}
+
+/* ns per sample of one voice of cls: the best of three runs of 4096
+ * frames from the state init leaves, in the engine's block length. */
+static double measure_cost(wdrt_engine *e, const wdv_class *cls, void *st) {
+    double best = 1e300;
+    for (int rep = 0; rep < 3; rep++) {
+        cls->init(st, e->fs);
+        for (int k = 0; k < cls->n_outputs; k++)
+            e->optr[k] = e->obuf + (size_t)k * (size_t)e->B;
+        for (int k = 0; k < cls->n_inputs; k++)
+            e->iptr[k] = e->zero;
+        double t0 = now_ns();
+        for (int n = 0; n < 4096; n += e->B)
+            cls->process(st, e->iptr, e->optr, e->B);
+        double dt = (now_ns() - t0) / (4096.0 / e->B * e->B);
+        if (dt < best)
+            best = dt;
+    }
+    return best > 0.01 ? best : 0.01;
+}
+
+static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned char *m, const layout *L) {
+    double *par = (double *)(m + L->params);
+    pramp *pr = (pramp *)(m + L->pramps);
+    const double **ip = (const double **)(m + L->inptrs);
+    int k = 0;
+    for (int i = 0; i < c->npools; i++) {
+        pool *p = &e->pools[i];
+        const wdv_class *cls = c->pools[i].cls;
+        p->cfg = c->pools[i];
+        p->first = k;
+        p->nspare = pool_spares(&p->cfg);
+        p->tmpl = m + L->tmpls + L->stride * (size_t)i;
+        p->param = par;
+        par += cls->n_params;
+        p->gain = p->cfg.gain;
+        p->next_seq = (uint32_t)p->cfg.voices + 1;
+        p->chain = p->tail = -1;
+        cls->init(p->tmpl, e->fs);
+        for (int j = 0; j < cls->n_params; j++)
+            p->param[j] = cls->get_param(p->tmpl, j);
+        p->cost = p->cfg.cost_ns > 0 ? p->cfg.cost_ns : measure_cost(e, cls, m + L->states);
+        for (int j = 0; j < p->cfg.voices + p->nspare; j++, k++) {
+            inst *v = &e->inst[k];
+            memset(v, 0, sizeof *v);
+            v->st = m + L->states + L->stride * (size_t)k;
+            memcpy(v->st, p->tmpl, cls->state_size);
+            v->pr = pr;
+            pr += cls->n_params;
+            if (p->cfg.owned) {
+                v->in = ip;
+                ip += cls->n_inputs;
+            }
+            v->pool = i;
+            v->spare = j >= p->cfg.voices;
+            v->act = -1;
+            v->chain = v->tail = -1;
+            v->mode = M_FREE;
+            v->fade.v = 1;
+            v->gain.v = p->gain;
+            v->note_gain = 1;
+        }
+    }
+}
+
+static void activate(wdrt_engine *e, int k) {
+    inst *v = &e->inst[k];
+    if (v->act < 0) {
+        v->act = e->nactive;
+        e->active[e->nactive++] = k;
+    }
+}
+
+/* Standing voices start awake, from the state init left them in. */
+static void start_owned(wdrt_engine *e) {
+    for (int i = 0; i < e->npools; i++) {
+        pool *p = &e->pools[i];
+        if (!p->cfg.owned)
+            continue;
+        for (int j = 0; j < p->cfg.voices; j++) {
+            inst *v = &e->inst[p->first + j];
+            v->mode = M_AWAKE;
+            v->note = ((uint32_t)(i + 1) << SEQ_BITS) | (uint32_t)(j + 1);
+            v->priority = p->cfg.priority;
+            v->eref = p->cfg.cls->energy(v->st);
+            activate(e, p->first + j);
+        }
+    }
+}
+
+wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg, void *mem, wdrt_engine **engine) {
+    if (!mem || !engine || check_config(cfg) != WDRT_OK)
+        return WDRT_INVALID_ARGS;
+    layout L;
+    get_layout(cfg, &L);
+    unsigned char *m = (unsigned char *)up((size_t)mem, 64);
+    memset(m, 0, L.total);
+    wdrt_engine *e = (wdrt_engine *)(m + L.engine);
+    e->fs = cfg->rate;
+    e->nch = cfg->channels;
+    e->B = cfg->block;
+    e->npools = cfg->npools;
+    e->ninst = L.ninst;
+    e->stride = L.stride;
+    e->pools = (pool *)(m + L.pools);
+    e->inst = (inst *)(m + L.inst);
+    e->q = (ev *)(m + L.q);
+    e->qmask = (uint32_t)L.qcap - 1;
+    e->heap = (ev *)(m + L.heap);
+    e->cap = cfg->pending;
+    e->blk = (ev *)(m + L.blk);
+    e->active = (int *)(m + L.active);
+    e->virt = (int *)(m + L.virt);
+    e->inputs = (int *)(m + L.inputs);
+    e->touched = (int *)(m + L.touched);
+    e->mix = (double *)(m + L.mix);
+    e->obuf = (double *)(m + L.obuf);
+    e->zero = (double *)(m + L.zero);
+    e->optr = (double **)(m + L.optr);
+    e->iptr = (const double **)(m + L.iptr);
+    e->maxout = L.maxout;
+    e->maxin = L.maxin;
+    e->budget = cfg->budget_ns;
+    e->sleep = cfg->sleep;
+    e->rel = exp(-cfg->block / (0.05 * cfg->rate));
+    e->base = mem;
+    init_pools(e, cfg, m, &L);
+    start_owned(e);
+    e->s.budget_ns = e->budget;
+    *engine = e;
+    return WDRT_OK;
+}
+
+static void *def_alloc(size_t n, void *user) {
+    (void)user;
+    return malloc(n);
+}
+
+static void def_free(void *p, void *user) {
+    (void)user;
+    free(p);
+}
+
+wdrt_result wdrt_engine_init(const wdrt_engine_config *cfg, const wdrt_alloc_callbacks *alloc, wdrt_engine **engine) {
+    size_t n;
+    wdrt_result r = wdrt_engine_get_size(cfg, &n);
+    if (r != WDRT_OK || !engine)
+        return WDRT_INVALID_ARGS;
+    void *mem = alloc && alloc->alloc ? alloc->alloc(n, alloc->user) : def_alloc(n, NULL);
+    if (!mem)
+        return WDRT_OUT_OF_MEMORY;
+    r = wdrt_engine_init_prealloc(cfg, mem, engine);
+    if (r != WDRT_OK) {
+        if (alloc && alloc->free)
+            alloc->free(mem, alloc->user);
+        else
+            def_free(mem, NULL);
+        return r;
+    }
+    (*engine)->from_alloc = 1;
+    return WDRT_OK;
+}
+
+void wdrt_engine_uninit(wdrt_engine *e, const wdrt_alloc_callbacks *alloc) {
+    if (!e || !e->from_alloc)
+        return;
+    void *mem = e->base;
+    if (alloc && alloc->free)
+        alloc->free(mem, alloc->user);
+    else
+        def_free(mem, NULL);
+}
+
+/* ---- the producer's side ---- */
+
+uint64_t wdrt_engine_time(const wdrt_engine *e) { return e ? __atomic_load_n(&e->time, __ATOMIC_ACQUIRE) : 0; }
+
+wdrt_voice wdrt_engine_voice(const wdrt_engine *e, int pool, int index) {
+    if (!e || pool < 0 || pool >= e->npools || !e->pools[pool].cfg.owned || index < 0 ||
+        index >= e->pools[pool].cfg.voices)
+        return 0;
+    return ((uint32_t)(pool + 1) << SEQ_BITS) | (uint32_t)(index + 1);
+}
+
+wdrt_voice wdrt_engine_pool(const wdrt_engine *e, int pool) {
+    if (!e || pool < 0 || pool >= e->npools)
+        return 0;
+    return (uint32_t)(pool + 1) << SEQ_BITS;
+}
+
+static int voice_pool(const wdrt_engine *e, wdrt_voice v) {
+    int p = (int)(v >> SEQ_BITS) - 1;
+    return v && p >= 0 && p < e->npools ? p : -1;
+}
+
+/* Copies ev into the queue (lock-free, one producer and one consumer). */
+static wdrt_result post(wdrt_engine *e, ev *x) {
+    uint32_t h = __atomic_load_n(&e->qhead, __ATOMIC_RELAXED);
+    uint32_t t = __atomic_load_n(&e->qtail, __ATOMIC_ACQUIRE);
+    if (h - t > e->qmask)
+        return WDRT_QUEUE_FULL;
+    x->seq = e->seq++;
+    e->q[h & e->qmask] = *x;
+    __atomic_store_n(&e->qhead, h + 1, __ATOMIC_RELEASE);
+    return WDRT_OK;
+}
+
+static void ev_init(ev *x, int type, uint64_t frame, wdrt_voice v) {
+    x->type = type;
+    x->frame = frame;
+    x->v = v;
+    x->n = 0;
+    x->pool = -1;
+    x->value = 0;
+}
+
+wdrt_result wdrt_engine_strike(wdrt_engine *e, uint64_t frame, wdrt_voice v, int n, const int *ids,
+                               const double *values) {
+    if (!e || voice_pool(e, v) < 0 || n < 0 || n > WDRT_STRIKE_MAX || (n && (!ids || !values)))
+        return WDRT_INVALID_ARGS;
+    const wdv_class *cls = e->pools[voice_pool(e, v)].cfg.cls;
+    ev x;
+    ev_init(&x, EV_STRIKE, frame, v);
+    for (int k = 0; k < n; k++) {
+        if (ids[k] < 0 || ids[k] >= cls->n_ic_targets || !isfinite(values[k]))
+            return WDRT_INVALID_ARGS;
+        x.ids[k] = ids[k];
+        x.vals[k] = values[k];
+    }
+    x.n = n;
+    return post(e, &x);
+}
+
+wdrt_result wdrt_engine_set(wdrt_engine *e, uint64_t frame, wdrt_voice v, int param, double value) {
+    if (!e || voice_pool(e, v) < 0 || param < 0 || param >= e->pools[voice_pool(e, v)].cfg.cls->n_params ||
+        !isfinite(value))
+        return WDRT_INVALID_ARGS;
+    ev x;
+    ev_init(&x, EV_SET, frame, v);
+    x.n = param;
+    x.value = value;
+    return post(e, &x);
+}
+
+wdrt_result wdrt_engine_gain(wdrt_engine *e, uint64_t frame, wdrt_voice v, double gain) {
+    if (!e || voice_pool(e, v) < 0 || !isfinite(gain))
+        return WDRT_INVALID_ARGS;
+    ev x;
+    ev_init(&x, EV_GAIN, frame, v);
+    x.value = gain;
+    return post(e, &x);
+}
+
+wdrt_result wdrt_engine_play(wdrt_engine *e, uint64_t frame, int pool, double gain, int priority, wdrt_voice *note) {
+    if (!e || pool < 0 || pool >= e->npools || e->pools[pool].cfg.owned || !isfinite(gain))
+        return WDRT_INVALID_ARGS;
+    struct pool *p = &e->pools[pool];
+    uint32_t seq = p->next_seq;
+    ev x;
+    ev_init(&x, EV_PLAY, frame, ((uint32_t)(pool + 1) << SEQ_BITS) | seq);
+    x.pool = pool;
+    x.value = gain;
+    x.n = priority;
+    wdrt_result r = post(e, &x);
+    if (r != WDRT_OK)
+        return r;
+    /* sequence numbers above the standing ones, wrapping */
+    p->next_seq = seq + 1 > SEQ_MASK ? (uint32_t)p->cfg.voices + 1 : seq + 1;
+    if (note)
+        *note = x.v;
+    return WDRT_OK;
+}
+
+wdrt_result wdrt_engine_stop(wdrt_engine *e, uint64_t frame, wdrt_voice v) {
+    if (!e || voice_pool(e, v) < 0)
+        return WDRT_INVALID_ARGS;
+    ev x;
+    ev_init(&x, EV_STOP, frame, v);
+    return post(e, &x);
+}
+
+wdrt_result wdrt_engine_bind_input(wdrt_engine *e, wdrt_voice v, int k, const double *samples) {
+    int p = e ? voice_pool(e, v) : -1;
+    if (p < 0 || !e->pools[p].cfg.owned || (v & SEQ_MASK) == 0 || k < 0 || k >= e->pools[p].cfg.cls->n_inputs)
+        return WDRT_INVALID_ARGS;
+    int i = e->pools[p].first + (int)(v & SEQ_MASK) - 1;
+    inst *x = &e->inst[i];
+    x->in[k] = samples;
+    if (samples && !x->hasin) {
+        x->hasin = 1;
+        e->inputs[e->ninputs++] = i;
+    }
+    return WDRT_OK;
+}
+
+/* ---- the heap of pending events, ordered by (frame, seq) ---- */
+
+static int ev_before(const ev *a, const ev *b) { return a->frame < b->frame || (a->frame == b->frame && a->seq < b->seq); }
+
+static void heap_push(wdrt_engine *e, const ev *x) {
+    int i = e->nheap++;
+    while (i > 0) {
+        int p = (i - 1) / 2;
+        if (!ev_before(x, &e->heap[p]))
+            break;
+        e->heap[i] = e->heap[p];
+        i = p;
+    }
+    e->heap[i] = *x;
+}
+
+static void heap_pop(wdrt_engine *e, ev *out) {
+    *out = e->heap[0];
+    ev last = e->heap[--e->nheap];
+    int i = 0, n = e->nheap;
+    for (;;) {
+        int c = 2 * i + 1;
+        if (c >= n)
+            break;
+        if (c + 1 < n && ev_before(&e->heap[c + 1], &e->heap[c]))
+            c++;
+        if (!ev_before(&e->heap[c], &last))
+            break;
+        e->heap[i] = e->heap[c];
+        i = c;
+    }
+    if (n > 0)
+        e->heap[i] = last;
+}
+
+/* Moves what the producer posted into the heap, while it has room. */
+static void drain(wdrt_engine *e) {
+    uint32_t t = __atomic_load_n(&e->qtail, __ATOMIC_RELAXED);
+    uint32_t h = __atomic_load_n(&e->qhead, __ATOMIC_ACQUIRE);
+    while (t != h && e->nheap < e->cap) {
+        heap_push(e, &e->q[t & e->qmask]);
+        t++;
+    }
+    __atomic_store_n(&e->qtail, t, __ATOMIC_RELEASE);
+}
+
+/* ---- the audio thread: events ---- */
+
+static void chain_push(ev *blk, int *head, int *tail, int i) {
+    blk[i].next = -1;
+    if (*tail >= 0)
+        blk[*tail].next = i;
+    else
+        *head = i;
+    *tail = i;
+}
+
+/* The instance a handle names: its index, -2 for a whole pool, -1 when
+ * the note has ended. */
+static int find_inst(const wdrt_engine *e, wdrt_voice v) {
+    const pool *p = &e->pools[voice_pool(e, v)];
+    uint32_t seq = v & SEQ_MASK;
+    if (seq == 0)
+        return -2;
+    if (p->cfg.owned)
+        return seq <= (uint32_t)p->cfg.voices ? p->first + (int)seq - 1 : -1;
+    for (int i = p->first; i < p->first + p->cfg.voices + p->nspare; i++)
+        if (e->inst[i].note == v && e->inst[i].mode != M_FREE)
+            return i;
+    return -1;
+}
+
+static const wdv_class *cls_of(const wdrt_engine *e, const inst *v) { return e->pools[v->pool].cfg.cls; }
+
+static void ramp_to(ramp *r, double to, int frames) {
+    r->to = to;
+    r->step = (to - r->v) / frames;
+    r->left = frames;
+}
+
+static double ramp_next(ramp *r) {
+    double v = r->v;
+    if (r->left > 0)
+        r->v = --r->left == 0 ? r->to : r->v + r->step;
+    return v;
+}
+
+/* Puts a state back as init left it, with the pool's current params. */
+static void restore(wdrt_engine *e, inst *v) {
+    const pool *p = &e->pools[v->pool];
+    const wdv_class *cls = p->cfg.cls;
+    memcpy(v->st, p->tmpl, cls->state_size);
+    for (int j = 0; j < cls->n_params; j++)
+        if (p->param[j] != cls->get_param(p->tmpl, j))
+            cls->set_param(v->st, j, p->param[j]);
+    for (int j = 0; j < cls->n_params; j++)
+        v->pr[j].steps = v->pr[j].done = 0;
+    v->nramps = 0;
+}
+
+static void rest(wdrt_engine *e, inst *v) {
+    v->mode = M_FREE;
+    v->note = 0;
+    v->after = A_NONE;
+    (void)e;
+}
+
+/* The least important of a pool's voices that may be taken for a new
+ * note: a virtual one first, then by priority, level and age. */
+static int victim(const wdrt_engine *e, const pool *p) {
+    int best = -1;
+    for (int i = p->first; i < p->first + p->cfg.voices; i++) {
+        const inst *v = &e->inst[i];
+        if (v->mode == M_VIRTUAL)
+            return i;
+        if (best < 0 || v->priority < e->inst[best].priority ||
+            (v->priority == e->inst[best].priority &&
+             (v->level < e->inst[best].level || (v->level == e->inst[best].level && v->age > e->inst[best].age))))
+            best = i;
+    }
+    return best;
+}
+
+static void unvirt(wdrt_engine *e, int k) {
+    for (int i = 0; i < e->nvirt; i++)
+        if (e->virt[i] == k) {
+            e->virt[i] = e->virt[--e->nvirt];
+            return;
+        }
+}
+
+/* Moves the sound of instance k onto a free spare of its pool, which fades
+ * it out over one block; k is then free to play. */
+static void steal(wdrt_engine *e, int k) {
+    inst *v = &e->inst[k];
+    const pool *p = &e->pools[v->pool];
+    e->s.steals++;
+    if (v->mode == M_VIRTUAL) {
+        unvirt(e, k);
+        return;
+    }
+    int s = -1;
+    for (int i = p->first + p->cfg.voices; i < p->first + p->cfg.voices + p->nspare; i++)
+        if (e->inst[i].mode == M_FREE)
+            s = i;
+    if (s < 0) {
+        e->s.cuts++;
+        v->chain = v->tail = -1;
+        return;
+    }
+    inst *w = &e->inst[s];
+    const wdv_class *cls = p->cfg.cls;
+    memcpy(w->st, v->st, cls->state_size);
+    memcpy(w->pr, v->pr, sizeof(pramp) * (size_t)cls->n_params);
+    inst keep = *w;
+    *w = *v;
+    w->st = keep.st, w->pr = keep.pr, w->in = keep.in, w->spare = 1, w->act = keep.act;
+    w->after = A_FREE;
+    ramp_to(&w->fade, 0, e->B);
+    activate(e, s);
+    v->chain = v->tail = -1;
+}
+
+static void play(wdrt_engine *e, const ev *x) {
+    pool *p = &e->pools[x->pool];
+    int k = -1;
+    for (int i = p->first; i < p->first + p->cfg.voices && k < 0; i++)
+        if (e->inst[i].mode == M_FREE)
+            k = i;
+    if (k < 0) {
+        k = victim(e, p);
+        steal(e, k);
+    }
+    inst *v = &e->inst[k];
+    restore(e, v);
+    v->mode = M_AWAKE;
+    v->note = x->v;
+    v->note_gain = x->value;
+    v->priority = p->cfg.priority + x->n;
+    v->after = A_NONE;
+    v->start = x->off;
+    v->age = 0;
+    v->level = v->last = v->peak = 0;
+    v->quiet = 0;
+    v->fade.v = 1, v->fade.left = 0;
+    v->gain.v = x->value * p->gain, v->gain.left = 0;
+    v->eref = p->cfg.cls->energy(v->st);
+    activate(e, k);
+}
+
+/* A strike, set, gain or stop for an instance that is not awake.  A
+ * strike wakes it; the event joins its chain when `own` (else the pool's
+ * chain carries it). */
+static void apply_idle(wdrt_engine *e, int k, const ev *x, int own) {
+    inst *v = &e->inst[k];
+    const wdv_class *cls = cls_of(e, v);
+    switch (x->type) {
+    case EV_STRIKE:
+        if (v->mode == M_VIRTUAL) {
+            unvirt(e, k);
+            e->s.revived++;
+        } else {
+            e->s.wakes++;
+        }
+        v->mode = M_AWAKE;
+        v->after = A_NONE;
+        v->fade.v = 1, v->fade.left = 0;
+        v->start = x->off;
+        v->age = GRACE_BLOCKS;
+        v->quiet = 0;
+        activate(e, k);
+        if (own)
+            chain_push(e->blk, &v->chain, &v->tail, (int)(x - e->blk));
+        break;
+    case EV_SET:
+        cls->set_param(v->st, x->n, x->value);
+        v->pr[x->n].steps = v->pr[x->n].done = 0;
+        break;
+    case EV_GAIN:
+        if (x->v & SEQ_MASK)
+            v->note_gain = x->value;
+        v->gain.v = v->note_gain * e->pools[v->pool].gain, v->gain.left = 0;
+        break;
+    case EV_STOP:
+        if (v->mode == M_VIRTUAL)
+            unvirt(e, k);
+        if (e->pools[v->pool].cfg.owned) {
+            restore(e, v);
+            v->mode = M_ASLEEP;
+        } else {
+            rest(e, v);
+        }
+        break;
+    }
+}
+
+static void dispatch(wdrt_engine *e, ev *x) {
+    if (x->type == EV_PLAY) {
+        play(e, x);
+        return;
+    }
+    int k = find_inst(e, x->v);
+    if (k == -1) {
+        e->s.dropped++;
+        return;
+    }
+    if (k >= 0) {
+        inst *v = &e->inst[k];
+        if (v->mode == M_AWAKE)
+            chain_push(e->blk, &v->chain, &v->tail, (int)(x - e->blk));
+        else
+            apply_idle(e, k, x, 1);
+        return;
+    }
+    pool *p = &e->pools[voice_pool(e, x->v)];
+    if (x->type == EV_SET)
+        p->param[x->n] = x->value;
+    if (x->type == EV_GAIN)
+        p->gain = x->value;
+    int chained = 0;
+    for (int i = p->first; i < p->first + p->cfg.voices + p->nspare; i++) {
+        inst *v = &e->inst[i];
+        if (v->mode == M_FREE || (v->spare && x->type != EV_GAIN))
+            continue;
+        if (v->mode != M_AWAKE)
+            apply_idle(e, i, x, 0);
+        chained |= v->mode == M_AWAKE;
+    }
+    if (chained) {
+        if (p->chain < 0)
+            e->touched[e->ntouched++] = (int)(p - e->pools);
+        chain_push(e->blk, &p->chain, &p->tail, (int)(x - e->blk));
+    }
+}
+
+/* Takes the events due before frame t0 + nb off the heap and resolves
+ * them in order. */
+static void resolve(wdrt_engine *e, uint64_t t0, int nb) {
+    e->nblk = 0;
+    while (e->nheap > 0 && e->heap[0].frame < t0 + (uint64_t)nb && e->nblk < e->cap) {
+        ev *x = &e->blk[e->nblk++];
+        heap_pop(e, x);
+        if (x->frame < t0) {
+            e->s.late++;
+            x->off = 0;
+        } else {
+            x->off = (int)(x->frame - t0);
+        }
+        e->s.events++;
+        dispatch(e, x);
+    }
+}
+
+/* ---- the audio thread: rendering ---- */
+
+static void ramps_next(inst *v, int np) {
+    v->nramps = 0;
+    for (int j = 0; j < np; j++)
+        v->nramps += v->pr[j].done < v->pr[j].steps;
+}
+
+/* Sets every ramping param whose next step is due at frame `now`. */
+static void apply_ramps(wdrt_engine *e, inst *v, uint64_t now) {
+    const wdv_class *cls = cls_of(e, v);
+    for (int j = 0; j < cls->n_params; j++) {
+        pramp *r = &v->pr[j];
+        while (r->done < r->steps && r->next <= now) {
+            r->done++;
+            double x = r->done == r->steps ? r->to : r->from + (r->to - r->from) * r->done / r->steps;
+            cls->set_param(v->st, j, x);
+            r->next += (uint64_t)r->every;
+        }
+    }
+    ramps_next(v, cls->n_params);
+}
+
+/* The first frame after `now` at which a ramp steps, or UINT64_MAX. */
+static uint64_t ramp_due(const wdrt_engine *e, const inst *v) {
+    uint64_t t = UINT64_MAX;
+    for (int j = 0; j < cls_of(e, v)->n_params; j++)
+        if (v->pr[j].done < v->pr[j].steps && v->pr[j].next < t)
+            t = v->pr[j].next;
+    return t;
+}
+
+static void fade_out(wdrt_engine *e, inst *v, int after) {
+    v->after = after;
+    ramp_to(&v->fade, 0, e->B);
+}
+
+static void apply_event(wdrt_engine *e, int k, const ev *x, uint64_t now) {
+    inst *v = &e->inst[k];
+    const wdv_class *cls = cls_of(e, v);
+    switch (x->type) {
+    case EV_STRIKE:
+        cls->set_ic(v->st, x->n, x->ids, x->vals);
+        v->eref = cls->energy(v->st);
+        v->quiet = 0;
+        if (v->after != A_NONE) { /* struck while fading out: back up */
+            v->after = A_NONE;
+            ramp_to(&v->fade, 1, e->B);
+        }
+        break;
+    case EV_SET: {
+        pramp *r = &v->pr[x->n];
+        if (cls->params[x->n].flags & WDV_PARAM_STEP) {
+            cls->set_param(v->st, x->n, x->value);
+            r->steps = r->done = 0;
+            ramps_next(v, cls->n_params);
+            break;
+        }
+        r->from = cls->get_param(v->st, x->n);
+        r->to = x->value;
+        r->steps = e->B < RAMP_STEPS ? e->B : RAMP_STEPS;
+        r->every = e->B / r->steps;
+        r->done = 0;
+        r->next = now;
+        apply_ramps(e, v, now);
+        break;
+    }
+    case EV_GAIN:
+        if (x->v & SEQ_MASK)
+            v->note_gain = x->value;
+        ramp_to(&v->gain, v->note_gain * e->pools[v->pool].gain, e->B);
+        break;
+    case EV_STOP:
+        fade_out(e, v, e->pools[v->pool].cfg.owned ? A_RESET : A_FREE);
+        break;
+    }
+}
+
+/* Mixes frames [a, b) of the heard output into the mix, with the gain and
+ * fade envelopes, and keeps the peak. */
+static void mix_segment(wdrt_engine *e, inst *v, int a, int b) {
+    const pool *p = &e->pools[v->pool];
+    const double *y = e->obuf + (size_t)p->cfg.output * (size_t)e->B;
+    double *m = e->mix;
+    double pk = v->peak, cl = 1, cr = 0;
+    if (e->nch == 2) {
+        double th = (p->cfg.pan + 1) * 0.7853981633974483;
+        cl = cos(th), cr = sin(th);
+    }
+    for (int n = a; n < b; n++) {
+        double g = v->gain.v * v->fade.v;
+        if (v->gain.left | v->fade.left)
+            g = ramp_next(&v->gain) * ramp_next(&v->fade);
+        double s = g * y[n];
+        double as = fabs(s);
+        pk = as > pk ? as : pk;
+        if (e->nch == 1)
+            m[n] += s;
+        else
+            m[2 * n] += cl * s, m[2 * n + 1] += cr * s;
+    }
+    v->peak = pk;
+}
+
+static void process_segment(wdrt_engine *e, inst *v, int a, int b, int callpos) {
+    const wdv_class *cls = cls_of(e, v);
+    for (int j = 0; j < cls->n_outputs; j++)
+        e->optr[j] = e->obuf + (size_t)j * (size_t)e->B + a;
+    for (int j = 0; j < cls->n_inputs; j++)
+        e->iptr[j] = v->in && v->in[j] ? v->in[j] + callpos + a : e->zero;
+    cls->process(v->st, e->iptr, e->optr, b - a);
+    mix_segment(e, v, a, b);
+}
+
+/* The next event of the instance's chain or its pool's (pool events from
+ * before the instance started this block were applied already). */
+static const ev *next_event(const wdrt_engine *e, const inst *v, int *ci, int *pi) {
+    while (*pi >= 0 && e->blk[*pi].off < v->start)
+        *pi = e->blk[*pi].next;
+    if (*ci < 0 && *pi < 0)
+        return NULL;
+    if (*pi < 0 || (*ci >= 0 && (e->blk[*ci].off < e->blk[*pi].off ||
+                                 (e->blk[*ci].off == e->blk[*pi].off && e->blk[*ci].seq < e->blk[*pi].seq)))) {
+        const ev *x = &e->blk[*ci];
+        *ci = x->next;
+        return x;
+    }
+    const ev *x = &e->blk[*pi];
+    *pi = x->next;
+    return x;
+}
+
+static const ev *peek_event(const wdrt_engine *e, const inst *v, int ci, int pi) {
+    return next_event(e, v, &ci, &pi);
+}
+
+/* Renders instance k over [start, nb) of the block at frame t0, segment by
+ * segment between the frames its events and ramp steps act at. */
+static void render_inst(wdrt_engine *e, int k, uint64_t t0, int nb, int callpos) {
+    inst *v = &e->inst[k];
+    int ci = v->chain, pi = v->spare ? -1 : e->pools[v->pool].chain;
+    int pos = v->start;
+    while (pos < nb) {
+        const ev *x;
+        while ((x = peek_event(e, v, ci, pi)) && x->off <= pos) {
+            next_event(e, v, &ci, &pi);
+            apply_event(e, k, x, t0 + (uint64_t)pos);
+        }
+        if (v->nramps)
+            apply_ramps(e, v, t0 + (uint64_t)pos);
+        int end = nb;
+        if (x && x->off < end)
+            end = x->off;
+        if (v->nramps) {
+            uint64_t r = ramp_due(e, v);
+            if (r < t0 + (uint64_t)end)
+                end = (int)(r - t0);
+        }
+        process_segment(e, v, pos, end, callpos);
+        pos = end;
+    }
+    v->start = 0;
+    v->chain = v->tail = -1;
+}
+
+/* Ends a fade-out that has run its course. */
+static void finish(wdrt_engine *e, int k) {
+    inst *v = &e->inst[k];
+    switch (v->after) {
+    case A_SLEEP:
+        v->mode = M_ASLEEP;
+        break;
+    case A_FREE:
+        rest(e, v);
+        break;
+    case A_VIRTUAL:
+        v->mode = M_VIRTUAL;
+        e->virt[e->nvirt++] = k;
+        break;
+    case A_RESET:
+        restore(e, v);
+        v->mode = M_ASLEEP;
+        break;
+    }
+    v->after = A_NONE;
+    v->fade.v = 1, v->fade.left = 0;
+}
+
+/* Drops from the active list what no longer renders. */
+static void compact(wdrt_engine *e) {
+    int n = 0;
+    for (int i = 0; i < e->nactive; i++) {
+        int k = e->active[i];
+        inst *v = &e->inst[k];
+        if (v->after != A_NONE && v->fade.left == 0)
+            finish(e, k);
+        if (v->mode == M_AWAKE) {
+            v->act = n;
+            e->active[n++] = k;
+        } else {
+            v->act = -1;
+        }
+    }
+    e->nactive = n;
+}
+
+/* Wakes standing voices whose bound input is not silent in [0, nb). */
+static void wake_inputs(wdrt_engine *e, int callpos, int nb) {
+    for (int i = 0; i < e->ninputs; i++) {
+        int k = e->inputs[i];
+        inst *v = &e->inst[k];
+        const wdv_class *cls = cls_of(e, v);
+        int first = nb;
+        for (int j = 0; j < cls->n_inputs; j++)
+            if (v->in[j])
+                for (int n = 0; n < first; n++)
+                    if (v->in[j][callpos + n] != 0) {
+                        first = n;
+                        break;
+                    }
+        if (first == nb) {
+            continue;
+        }
+        v->peak = v->peak > e->pools[v->pool].cfg.quiet ? v->peak : e->pools[v->pool].cfg.quiet;
+        if (v->mode == M_ASLEEP || v->mode == M_VIRTUAL) {
+            if (v->mode == M_VIRTUAL)
+                unvirt(e, k);
+            e->s.wakes++;
+            v->mode = M_AWAKE;
+            v->start = first;
+            v->age = GRACE_BLOCKS;
+            activate(e, k);
+        } else if (v->after == A_SLEEP) {
+            v->after = A_NONE;
+            ramp_to(&v->fade, 1, e->B);
+        }
+    }
+}
+
+/* ---- the audio thread: the end of a grid block ---- */
+
+static int more_important(const inst *a, double la, const inst *b, double lb) {
+    return a->priority > b->priority || (a->priority == b->priority && la > lb);
+}
+
+/* Voices quiet for their hold whose energy has run down, or stays put,
+ * fade out and sleep. */
+static void sleep_quiet(wdrt_engine *e) {
+    for (int i = 0; i < e->nactive; i++) {
+        inst *v = &e->inst[e->active[i]];
+        const pool *p = &e->pools[v->pool];
+        if (v->after != A_NONE || v->fade.left || v->spare || v->peak >= p->cfg.quiet) {
+            v->quiet = 0;
+            continue;
+        }
+        if (v->quiet++ == 0)
+            v->equiet = p->cfg.cls->energy(v->st);
+        if (v->quiet * (double)e->B < p->cfg.hold * e->fs)
+            continue;
+        double en = p->cfg.cls->energy(v->st);
+        v->quiet = 0;
+        if (en > v->eref * pow(10, p->cfg.floor_db / 10) && fabs(en - v->equiet) > 1e-6 * en)
+            continue;
+        fade_out(e, v, p->cfg.owned ? A_SLEEP : A_FREE);
+        e->s.sleeps++;
+    }
+}
+
+static double running_cost(const wdrt_engine *e) {
+    double c = 0;
+    for (int i = 0; i < e->nactive; i++) {
+        const inst *v = &e->inst[e->active[i]];
+        if (v->after == A_NONE)
+            c += e->pools[v->pool].cost;
+    }
+    return c;
+}
+
+/* Past the budget, the least important voices fade out to be stolen or
+ * made virtual. */
+static void enforce_budget(wdrt_engine *e) {
+    double c = running_cost(e);
+    while (c > e->budget) {
+        int w = -1;
+        for (int i = 0; i < e->nactive; i++) {
+            const inst *v = &e->inst[e->active[i]];
+            if (v->after != A_NONE || v->age < GRACE_BLOCKS)
+                continue;
+            if (w < 0 || more_important(&e->inst[w], e->inst[w].level, v, v->level))
+                w = e->active[i];
+        }
+        if (w < 0)
+            return;
+        inst *v = &e->inst[w];
+        const pool *p = &e->pools[v->pool];
+        if (p->cfg.virtualize || p->cfg.owned) {
+            v->vest = v->level;
+            v->vdec = v->last > 0 && v->level < v->last ? v->level / v->last : 1;
+            fade_out(e, v, A_VIRTUAL);
+            e->s.virtualized++;
+        } else {
+            fade_out(e, v, A_FREE);
+            e->s.steals++;
+        }
+        c -= p->cost;
+    }
+}
+
+/* Virtual voices: their level is followed as it was falling; those that
+ * fall silent end, and the most important come back while the budget has
+ * room. */
+static void revive(wdrt_engine *e) {
+    for (int i = 0; i < e->nvirt;) {
+        int k = e->virt[i];
+        inst *v = &e->inst[k];
+        const pool *p = &e->pools[v->pool];
+        v->vest *= v->vdec;
+        if (v->vest < p->cfg.quiet) {
+            e->virt[i] = e->virt[--e->nvirt];
+            if (p->cfg.owned)
+                v->mode = M_ASLEEP;
+            else
+                rest(e, v);
+            continue;
+        }
+        i++;
+    }
+    double c = running_cost(e);
+    for (;;) {
+        int w = -1, wi = -1;
+        for (int i = 0; i < e->nvirt; i++) {
+            const inst *v = &e->inst[e->virt[i]];
+            if (c + e->pools[v->pool].cost > e->budget && e->budget > 0)
+                continue;
+            if (w < 0 || more_important(v, v->vest, &e->inst[w], e->inst[w].vest))
+                w = e->virt[i], wi = i;
+        }
+        if (w < 0)
+            return;
+        inst *v = &e->inst[w];
+        e->virt[wi] = e->virt[--e->nvirt];
+        v->mode = M_AWAKE;
+        v->fade.v = 0;
+        ramp_to(&v->fade, 1, e->B);
+        v->level = v->vest;
+        v->age = GRACE_BLOCKS;
+        activate(e, w);
+        e->s.revived++;
+        c += e->pools[v->pool].cost;
+    }
+}
+
+static void end_block(wdrt_engine *e) {
+    for (int i = 0; i < e->nactive; i++) {
+        inst *v = &e->inst[e->active[i]];
+        v->last = v->level;
+        v->level = v->peak > v->level * e->rel ? v->peak : v->level * e->rel;
+        v->age++;
+    }
+    if (e->sleep)
+        sleep_quiet(e);
+    if (e->budget > 0) {
+        enforce_budget(e);
+        revive(e);
+    }
+    for (int i = 0; i < e->nactive; i++)
+        e->inst[e->active[i]].peak = 0;
+    e->s.cost_ns = running_cost(e);
+}
+
+void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes) {
+    if (!e || (!out && nframes))
+        return;
+    uint32_t done = 0;
+    while (done < nframes) {
+        uint64_t t0 = e->time;
+        uint64_t grid = (t0 / (uint64_t)e->B + 1) * (uint64_t)e->B;
+        int nb = (int)(grid - t0 < nframes - done ? grid - t0 : nframes - done);
+        drain(e);
+        resolve(e, t0, nb);
+        wake_inputs(e, (int)done, nb);
+        memset(e->mix, 0, sizeof(double) * (size_t)nb * (size_t)e->nch);
+        for (int i = 0; i < e->nactive; i++)
+            render_inst(e, e->active[i], t0, nb, (int)done);
+        for (int i = 0; i < e->ntouched; i++)
+            e->pools[e->touched[i]].chain = e->pools[e->touched[i]].tail = -1;
+        e->ntouched = 0;
+        if (t0 + (uint64_t)nb == grid)
+            end_block(e);
+        compact(e);
+        memcpy(out + (size_t)done * (size_t)e->nch, e->mix, sizeof(double) * (size_t)nb * (size_t)e->nch);
+        __atomic_store_n(&e->time, t0 + (uint64_t)nb, __ATOMIC_RELEASE);
+        done += (uint32_t)nb;
+    }
+    for (int i = 0; i < e->ninputs; i++) { /* bound for one call */
+        inst *v = &e->inst[e->inputs[i]];
+        for (int j = 0; j < cls_of(e, v)->n_inputs; j++)
+            v->in[j] = NULL;
+        v->hasin = 0;
+    }
+    e->ninputs = 0;
+}
+
+void wdrt_engine_get_stats(const wdrt_engine *e, wdrt_engine_stats *s) {
+    if (!e || !s)
+        return;
+    *s = e->s;
+    s->frames = e->time;
+    s->awake = e->nactive;
+    s->fading = s->asleep = s->free = 0;
+    for (int i = 0; i < e->nactive; i++) {
+        const inst *v = &e->inst[e->active[i]];
+        s->fading += v->after != A_NONE || v->fade.left > 0;
+    }
+    for (int i = 0; i < e->ninst; i++) {
+        s->asleep += e->inst[i].mode == M_ASLEEP;
+        s->free += e->inst[i].mode == M_FREE && !e->inst[i].spare;
+    }
+    s->virtual_ = e->nvirt;
+}
+
+double wdrt_engine_pool_cost(const wdrt_engine *e, int pool) {
+    return e && pool >= 0 && pool < e->npools ? e->pools[pool].cost : 0;
+}
