@@ -296,6 +296,9 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
         p->next_seq = (uint32_t)p->cfg.voices + 1;
         p->chain = p->tail = -1;
         cls->init(p->tmpl, e->fs);
+        for (int j = 0; p->cfg.params && j < cls->n_params; j++)
+            cls->set_param(p->tmpl, j, p->cfg.params[j]);
+        p->cfg.params = NULL;
         for (int j = 0; j < cls->n_params; j++)
             p->param[j] = cls->get_param(p->tmpl, j);
         p->cost = p->cfg.cost_ns > 0 ? p->cfg.cost_ns : measure_cost(e, cls, m + L->states);

@@ -102,6 +102,8 @@ typedef struct wdrt_pool_config {
     int virtualize;   /* past the budget: 1 made virtual, 0 stolen */
     int spares;       /* extra instances that carry the fade-out of a voice
                          stolen to play a new note; default 2 */
+    const double *params; /* the params every voice starts with (n_params
+                         values, copied at init), or NULL: the defaults */
 } wdrt_pool_config;
 
 /* Defaults for a pool of `voices` instances of cls, played as notes.
