@@ -205,7 +205,7 @@ wdrt_pool_config wdrt_pool_config_init(const wdv_class *cls, int voices) {
     p.voices = voices;
     p.gain = 1;
     p.quiet = 1e-5;
-    p.floor_db = -100;
+    p.floor_db = -60;
     p.hold = 0.1;
     p.spares = 2;
     return p;
@@ -1109,7 +1109,8 @@ static void sleep_quiet(wdrt_engine *e) {
             continue;
         double en = p->cfg.cls->energy(v->st);
         v->quiet = 0;
-        if (en > v->eref * pow(10, p->cfg.floor_db / 10) && fabs(en - v->equiet) > 1e-6 * en)
+        double floor = v->eref * pow(10, p->cfg.floor_db / 10);
+        if (en > floor && fabs(en - v->equiet) > floor)
             continue;
         fade_out(e, v, p->cfg.owned ? A_SLEEP : A_FREE);
         e->s.sleeps++;

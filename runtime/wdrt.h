@@ -92,11 +92,11 @@ typedef struct wdrt_pool_config {
                          (absolute, after gain); default 1e-5 (-100 dB) */
     double floor_db;  /* stored energy below which a voice may sleep, in dB
                          of the energy it had after its last strike (or at
-                         init); default -100 */
+                         init); default -60 */
     double hold;      /* s the output must stay quiet before a voice may
                          sleep; default 0.1.  At its end the voice sleeps
-                         if its energy is below the floor, or has not
-                         moved (to 1e-6) since the quiet began: energy
+                         if its energy is below the floor, or has moved by
+                         less than the floor since the quiet began: energy
                          that stays put in a quiet voice (a hammer flying
                          off after its strike) is energy it never sounds */
     int virtualize;   /* past the budget: 1 made virtual, 0 stolen */

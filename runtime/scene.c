@@ -1,0 +1,968 @@
+/*
+ * scene.c - scenes (.wds): reading, checking against the voices' classes,
+ * and rendering through an engine.
+ *
+ * Implements the scene part of runtime/wdrt.h.  The grammar of the forms
+ * this file knows is in the comments above their readers; every form is
+ * one entry of the table `forms`, so the forms of trees, surfaces, spatial
+ * layers and complexes join it without touching the others.  Nothing here
+ * is real-time safe: it reads files and allocates; the audio runs in the
+ * engine.
+ */
+#include "wdrt.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sexp.h"
+
+#define MAX_PLAY_SETS 32
+#define LAST_RING_S 120.0 /* a scene without length ends at the latest this long after its last event */
+
+enum { SE_STRIKE, SE_SET, SE_GAIN, SE_PLAY, SE_STOP };
+
+/* A number, or a curve over scene time: (curve (T V) (T V) ...). */
+typedef struct scnum {
+    double v;
+    const sx *curve; /* the (curve ...) list, or NULL */
+} scnum;
+
+typedef struct scparam {
+    const char *name;
+    const sx *at;
+    scnum val;
+    int id; /* set at bind */
+} scparam;
+
+typedef struct scvoice {
+    const char *name;
+    const sx *at;
+    char *netlist;
+    int pool;         /* (pool N): N instances to play from; 0: one standing voice */
+    double gain, pan, cost, quiet, hold;
+    const sx *gain_curve;
+    int priority, virtualize;
+    const char *out_name;
+    const sx *out_at;
+    int output;
+    scparam *params;
+    int nparams;
+    const wdv_class *cls;
+} scvoice;
+
+typedef struct scpair {
+    char name[128]; /* v(NODE) or x(NODE) */
+    const sx *at;
+    double value;
+    int id;
+} scpair;
+
+typedef struct scevent {
+    double time;
+    int order;
+    int kind; /* SE_* */
+    int voice;
+    const sx *at;
+    scparam set;         /* SE_SET; SE_GAIN's value */
+    scparam *sets;       /* SE_PLAY */
+    int nsets;
+    double gain;         /* SE_PLAY */
+    int priority;        /* SE_PLAY */
+    scpair *pairs;       /* SE_STRIKE, SE_PLAY */
+    int npairs;
+} scevent;
+
+struct wdrt_scene {
+    sx_doc *doc;
+    char *dir;           /* the scene's folder, for relative paths */
+    double rate, length, budget_cpu;
+    int channels, sleep;
+    scvoice *voices;
+    int nvoices;
+    scevent *ev;
+    int nev;
+    char *err;           /* where readers write their error */
+    size_t errlen;
+};
+
+/* ---- small helpers ---- */
+
+static void *xcalloc(size_t n, size_t sz) {
+    void *p = calloc(n ? n : 1, sz);
+    if (!p) {
+        fprintf(stderr, "wdrt: out of memory\n");
+        abort();
+    }
+    return p;
+}
+
+static void *grow(void *p, int n, size_t sz) {
+    /* arrays grow to powers of two: room for element n */
+    if (n & (n - 1) || n == 0) {
+        if (n)
+            return p;
+        return xcalloc(1, sz);
+    }
+    void *q = realloc(p, sz * (size_t)n * 2);
+    if (!q) {
+        fprintf(stderr, "wdrt: out of memory\n");
+        abort();
+    }
+    return q;
+}
+
+static char *xstrdup(const char *s) {
+    char *d = xcalloc(strlen(s) + 1, 1);
+    strcpy(d, s);
+    return d;
+}
+
+#define ERR(x, ...) sx_error(S->doc, (x), S->err, S->errlen, __VA_ARGS__)
+
+static const char *kind_of(const sx *x) { return x ? sx_kind_name(x->kind) : "nothing"; }
+
+/* The closest of `names` to s (edit distance at most 2), or NULL. */
+static const char *nearest(const char *s, const char *const *names, int n) {
+    const char *best = NULL;
+    int bd = 3;
+    for (int i = 0; i < n; i++) {
+        const char *t = names[i];
+        int ls = (int)strlen(s), lt = (int)strlen(t);
+        if (ls > 60 || lt > 60 || abs(ls - lt) >= bd)
+            continue;
+        int d[61][61];
+        for (int a = 0; a <= ls; a++)
+            d[a][0] = a;
+        for (int b = 0; b <= lt; b++)
+            d[0][b] = b;
+        for (int a = 1; a <= ls; a++)
+            for (int b = 1; b <= lt; b++) {
+                int c = d[a - 1][b - 1] + (s[a - 1] != t[b - 1]);
+                c = d[a - 1][b] + 1 < c ? d[a - 1][b] + 1 : c;
+                d[a][b] = d[a][b - 1] + 1 < c ? d[a][b - 1] + 1 : c;
+            }
+        if (d[ls][lt] < bd)
+            bd = d[ls][lt], best = t;
+    }
+    return best;
+}
+
+static int unknown(wdrt_scene *S, const sx *at, const char *what, const char *name, const char *const *names, int n) {
+    const char *near = nearest(name, names, n);
+    if (near)
+        return ERR(at, "unknown %s '%s'; did you mean '%s'?", what, name, near);
+    return ERR(at, "unknown %s '%s'", what, name);
+}
+
+/* number = NUM */
+static int number(wdrt_scene *S, const sx *x, double *v) {
+    *v = 0;
+    if (!x || x->kind != SX_NUM)
+        return ERR(x, "expected a number, found a %s", kind_of(x));
+    *v = x->num;
+    return 0;
+}
+
+/* curve = '(' 'curve' ( '(' T V ')' )+ ')'   times rising, in seconds */
+static int curve(wdrt_scene *S, const sx *c) {
+    if (c->len < 2)
+        return ERR(c, "a curve needs at least one (TIME VALUE) key");
+    double last = -1;
+    for (const sx *k = c->head->next; k; k = k->next) {
+        double t, v;
+        if (k->kind != SX_LIST || k->len != 2)
+            return ERR(k, "expected a key (TIME VALUE)");
+        if (number(S, k->head, &t) || number(S, k->head->next, &v))
+            return -1;
+        if (t < 0)
+            return ERR(k->head, "a key's time must not be negative");
+        if (t < last)
+            return ERR(k->head, "keys of a curve must come in time order");
+        last = t;
+    }
+    return 0;
+}
+
+/* The value of a curve at time t: linear between keys, held outside. */
+static double curve_at(const sx *c, double t) {
+    const sx *k = c->head->next;
+    double t0 = k->head->num, v0 = k->head->next->num;
+    if (t <= t0)
+        return v0;
+    for (k = k->next; k; k = k->next) {
+        double t1 = k->head->num, v1 = k->head->next->num;
+        if (t < t1)
+            return t1 > t0 ? v0 + (v1 - v0) * (t - t0) / (t1 - t0) : v1;
+        t0 = t1, v0 = v1;
+    }
+    return v0;
+}
+
+/* value = number | curve */
+static int value(wdrt_scene *S, const sx *x, scnum *v, int curves) {
+    v->curve = NULL;
+    if (x && x->kind == SX_LIST && sx_is(x->head, "curve")) {
+        if (!curves)
+            return ERR(x, "a curve is not allowed here");
+        if (curve(S, x))
+            return -1;
+        v->curve = x;
+        v->v = curve_at(x, 0);
+        return 0;
+    }
+    return number(S, x, &v->v);
+}
+
+static double curve_end(const sx *c) {
+    const sx *k = c->head->next;
+    while (k->next)
+        k = k->next;
+    return k->head->num;
+}
+
+static double curve_start(const sx *c) { return c->head->next->head->num; }
+
+static int arity(wdrt_scene *S, const sx *f, int lo, int hi, const char *usage) {
+    if (f->len < lo || (hi >= 0 && f->len > hi))
+        return ERR(f, "expected %s", usage);
+    return 0;
+}
+
+static int voice_index(const wdrt_scene *S, const char *name) {
+    for (int i = 0; i < S->nvoices; i++)
+        if (!strcmp(S->voices[i].name, name))
+            return i;
+    return -1;
+}
+
+static int voice_ref(wdrt_scene *S, const sx *x, int *vi) {
+    if (!x || x->kind != SX_SYM)
+        return ERR(x, "expected the name of a voice, found a %s", kind_of(x));
+    *vi = voice_index(S, x->text);
+    if (*vi >= 0)
+        return 0;
+    const char **names = xcalloc((size_t)S->nvoices + 1, sizeof *names);
+    for (int i = 0; i < S->nvoices; i++)
+        names[i] = S->voices[i].name;
+    int r = unknown(S, x, "voice", x->text, names, S->nvoices);
+    free(names);
+    return r;
+}
+
+/* ---- settings ---- */
+
+/* rate = '(' 'rate' HZ ')' */
+static int f_rate(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 2, "(rate HZ)") || number(S, f->head->next, &S->rate))
+        return -1;
+    if (!(S->rate >= 1000 && S->rate <= 768000))
+        return ERR(f->head->next, "a rate must lie between 1 kHz and 768 kHz");
+    return 0;
+}
+
+/* length = '(' 'length' SECONDS ')' */
+static int f_length(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 2, "(length SECONDS)") || number(S, f->head->next, &S->length))
+        return -1;
+    if (!(S->length > 0 && S->length <= 86400))
+        return ERR(f->head->next, "a length must be positive and at most a day");
+    return 0;
+}
+
+/* output = '(' 'output' ( 'mono' | 'stereo' ) ')' */
+static int f_output(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 3, "(output mono|stereo)"))
+        return -1;
+    const sx *m = f->head->next;
+    if (sx_is(m, "mono"))
+        S->channels = 1;
+    else if (sx_is(m, "stereo"))
+        S->channels = 2;
+    else if (sx_is(m, "binaural"))
+        return ERR(m, "binaural output needs the spatial layer, which this build does not have");
+    else
+        return ERR(m, "expected mono or stereo");
+    if (f->len > 2)
+        return ERR(m->next, "only binaural output takes a file");
+    return 0;
+}
+
+/* budget = '(' 'budget' CPU ')'   the share of one core voices may use */
+static int f_budget(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 2, "(budget CPU)") || number(S, f->head->next, &S->budget_cpu))
+        return -1;
+    if (!(S->budget_cpu > 0 && S->budget_cpu <= 64))
+        return ERR(f->head->next, "a budget is a positive share of one core (0.5 = half)");
+    return 0;
+}
+
+/* sleep = '(' 'sleep' ( 'on' | 'off' ) ')' */
+static int f_sleep(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 2, "(sleep on|off)"))
+        return -1;
+    if (!sx_is(f->head->next, "on") && !sx_is(f->head->next, "off"))
+        return ERR(f->head->next, "expected on or off");
+    S->sleep = sx_is(f->head->next, "on");
+    return 0;
+}
+
+/* ---- voices ---- */
+
+static char *resolve_path(const wdrt_scene *S, const char *p) {
+    if (p[0] == '/' || !S->dir[0])
+        return xstrdup(p);
+    char *r = xcalloc(strlen(S->dir) + strlen(p) + 2, 1);
+    sprintf(r, "%s/%s", S->dir, p);
+    return r;
+}
+
+/* param = '(' 'param' NAME value ')' */
+static int param(wdrt_scene *S, const sx *f, scparam *p) {
+    if (arity(S, f, 3, 3, "(param NAME VALUE)"))
+        return -1;
+    const sx *n = f->head->next;
+    if (n->kind != SX_SYM)
+        return ERR(n, "expected the name of a param, found a %s", kind_of(n));
+    p->name = n->text;
+    p->at = n;
+    p->id = -1;
+    return value(S, n->next, &p->val, 1);
+}
+
+/* A property of a voice: (pool N) (param P V) (gain G) (pan X)
+ * (priority P) (output NAME) (cost NS) (quiet DB) (hold S) (virtual) */
+static int voice_prop(wdrt_scene *S, scvoice *v, const sx *p) {
+    static const char *const props[] = {"pool", "param", "gain", "pan", "priority", "output",
+                                        "cost", "quiet", "hold", "virtual", "pos"};
+    if (p->kind != SX_LIST || !p->head || p->head->kind != SX_SYM)
+        return ERR(p, "expected a property such as (pool N) or (param NAME VALUE)");
+    const char *k = p->head->text;
+    const sx *a = p->head->next;
+    double x;
+    if (!strcmp(k, "param")) {
+        v->params = grow(v->params, v->nparams, sizeof *v->params);
+        return param(S, p, &v->params[v->nparams++]);
+    }
+    if (!strcmp(k, "virtual"))
+        return arity(S, p, 1, 1, "(virtual)") ? -1 : (v->virtualize = 1, 0);
+    if (!strcmp(k, "output")) {
+        if (arity(S, p, 2, 2, "(output NAME)"))
+            return -1;
+        if (a->kind != SX_SYM)
+            return ERR(a, "expected the name of an output, found a %s", kind_of(a));
+        v->out_name = a->text, v->out_at = a;
+        return 0;
+    }
+    if (!strcmp(k, "gain")) {
+        scnum g;
+        if (arity(S, p, 2, 2, "(gain G)") || value(S, a, &g, 1))
+            return -1;
+        v->gain = g.v, v->gain_curve = g.curve;
+        return 0;
+    }
+    if (!strcmp(k, "pos"))
+        return ERR(p, "placing a voice in space needs the spatial layer, which this build does not have");
+    int known = 0;
+    for (int i = 0; i < (int)(sizeof props / sizeof *props); i++)
+        known |= !strcmp(k, props[i]);
+    if (!known)
+        return unknown(S, p->head, "property", k, props, (int)(sizeof props / sizeof *props));
+    if (arity(S, p, 2, 2, "one number") || number(S, a, &x))
+        return -1;
+    if (!strcmp(k, "pool")) {
+        if (x != floor(x) || x < 1 || x > 100000)
+            return ERR(a, "a pool holds 1 to 100000 voices");
+        v->pool = (int)x;
+    } else if (!strcmp(k, "pan")) {
+        if (!(x >= -1 && x <= 1))
+            return ERR(a, "pan lies between -1 (left) and 1 (right)");
+        v->pan = x;
+    } else if (!strcmp(k, "priority")) {
+        if (x != floor(x) || fabs(x) > 1e6)
+            return ERR(a, "a priority is a whole number");
+        v->priority = (int)x;
+    } else if (!strcmp(k, "cost")) {
+        if (!(x > 0 && x < 1e9))
+            return ERR(a, "a cost is a positive number of ns per sample");
+        v->cost = x;
+    } else if (!strcmp(k, "quiet")) {
+        if (!(x <= 0 && x >= -300))
+            return ERR(a, "a quiet level is in dB, between -300 and 0");
+        v->quiet = pow(10, x / 20);
+    } else if (!strcmp(k, "hold")) {
+        if (!(x >= 0 && x <= 3600))
+            return ERR(a, "a hold is a time in seconds");
+        v->hold = x;
+    }
+    return 0;
+}
+
+/* voice = '(' 'voice' NAME STRING property* ')' */
+static int f_voice(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 3, -1, "(voice NAME \"file.wdn\" ...)"))
+        return -1;
+    const sx *n = f->head->next, *file = n->next;
+    if (n->kind != SX_SYM)
+        return ERR(n, "expected the name of the voice, found a %s", kind_of(n));
+    if (voice_index(S, n->text) >= 0)
+        return ERR(n, "a voice named '%s' is already in the scene", n->text);
+    if (file->kind != SX_STR)
+        return ERR(file, "expected the netlist's file name in double quotes, found a %s", kind_of(file));
+    S->voices = grow(S->voices, S->nvoices, sizeof *S->voices);
+    scvoice *v = &S->voices[S->nvoices++];
+    memset(v, 0, sizeof *v);
+    v->name = n->text;
+    v->at = n;
+    v->netlist = resolve_path(S, file->text);
+    v->gain = 1;
+    v->quiet = 1e-5;
+    v->hold = 0.1;
+    for (const sx *p = file->next; p; p = p->next)
+        if (voice_prop(S, v, p))
+            return -1;
+    return 0;
+}
+
+/* ---- the timeline ---- */
+
+/* pair = '(' ( 'v' | 'x' ) NODE NUMBER ')' */
+static int pair(wdrt_scene *S, const sx *p, scpair *q) {
+    if (p->kind != SX_LIST || p->len != 3 || !(sx_is(p->head, "v") || sx_is(p->head, "x")))
+        return ERR(p, "expected (v NODE VALUE) or (x NODE VALUE)");
+    const sx *node = p->head->next;
+    if (node->kind != SX_SYM && node->kind != SX_NUM)
+        return ERR(node, "expected a node name, found a %s", kind_of(node));
+    if (strlen(node->text) > 100)
+        return ERR(node, "node name too long");
+    snprintf(q->name, sizeof q->name, "%s(%s)", p->head->text, node->text);
+    q->at = p;
+    q->id = -1;
+    return number(S, node->next, &q->value);
+}
+
+static int pairs(wdrt_scene *S, const sx *form, const sx *first, scevent *e) {
+    for (const sx *p = first; p; p = p->next) {
+        if (e->npairs == WDRT_STRIKE_MAX)
+            return ERR(p, "a strike sets at most %d targets", WDRT_STRIKE_MAX);
+        e->pairs = grow(e->pairs, e->npairs, sizeof *e->pairs);
+        if (pair(S, p, &e->pairs[e->npairs++]))
+            return -1;
+    }
+    if (e->npairs == 0)
+        return ERR(form, "a strike needs at least one (v NODE VALUE) or (x NODE VALUE)");
+    return 0;
+}
+
+/* play = '(' 'play' POOL ( '(' 'gain' G ')' | '(' 'priority' P ')' |
+ *        '(' 'set' PARAM VALUE ')' | '(' 'strike' pair+ ')' )* ')' */
+static int play(wdrt_scene *S, const sx *f, scevent *e) {
+    for (const sx *p = f->head->next->next; p; p = p->next) {
+        if (p->kind != SX_LIST || !p->head)
+            return ERR(p, "expected (set PARAM VALUE), (strike ...), (gain G) or (priority P)");
+        if (sx_is(p->head, "set")) {
+            if (arity(S, p, 3, 3, "(set PARAM VALUE)"))
+                return -1;
+            if (e->nsets == MAX_PLAY_SETS)
+                return ERR(p, "a play sets at most %d params", MAX_PLAY_SETS);
+            e->sets = grow(e->sets, e->nsets, sizeof *e->sets);
+            scparam *q = &e->sets[e->nsets++];
+            if (p->head->next->kind != SX_SYM)
+                return ERR(p->head->next, "expected the name of a param, found a %s", kind_of(p->head->next));
+            q->name = p->head->next->text, q->at = p->head->next, q->id = -1;
+            if (value(S, p->head->next->next, &q->val, 0))
+                return -1;
+        } else if (sx_is(p->head, "strike")) {
+            if (e->npairs)
+                return ERR(p, "a play strikes once");
+            if (pairs(S, p, p->head->next, e))
+                return -1;
+        } else if (sx_is(p->head, "gain")) {
+            if (arity(S, p, 2, 2, "(gain G)") || number(S, p->head->next, &e->gain))
+                return -1;
+        } else if (sx_is(p->head, "priority")) {
+            double x;
+            if (arity(S, p, 2, 2, "(priority P)") || number(S, p->head->next, &x))
+                return -1;
+            if (x != floor(x) || fabs(x) > 1e6)
+                return ERR(p->head->next, "a priority is a whole number");
+            e->priority = (int)x;
+        } else {
+            return ERR(p, "expected (set PARAM VALUE), (strike ...), (gain G) or (priority P)");
+        }
+    }
+    return 0;
+}
+
+/* event = '(' 'strike' VOICE pair+ ')' | '(' 'set' NAME PARAM value ')'
+ *       | '(' 'gain' NAME value ')' | play | '(' 'stop' NAME ')' */
+static int event(wdrt_scene *S, const sx *f, double t, scevent *e) {
+    static const char *const kinds[] = {"strike", "set", "gain", "play", "stop"};
+    memset(e, 0, sizeof *e);
+    e->time = t;
+    e->at = f;
+    e->gain = 1;
+    if (f->kind != SX_LIST || !f->head || f->head->kind != SX_SYM)
+        return ERR(f, "expected an event: (strike ...), (set ...), (gain ...), (play ...) or (stop ...)");
+    e->kind = -1;
+    for (int i = 0; i < 5; i++)
+        if (sx_is(f->head, kinds[i]))
+            e->kind = i;
+    if (e->kind < 0)
+        return unknown(S, f->head, "event", f->head->text, kinds, 5);
+    if (f->len < 2)
+        return ERR(f, "expected the voice the event is for");
+    if (voice_ref(S, f->head->next, &e->voice))
+        return -1;
+    const scvoice *v = &S->voices[e->voice];
+    const sx *a = f->head->next->next;
+    switch (e->kind) {
+    case SE_STRIKE:
+        return pairs(S, f, a, e);
+    case SE_SET:
+        if (arity(S, f, 4, 4, "(set NAME PARAM VALUE)"))
+            return -1;
+        if (a->kind != SX_SYM)
+            return ERR(a, "expected the name of a param, found a %s", kind_of(a));
+        e->set.name = a->text, e->set.at = a, e->set.id = -1;
+        return value(S, a->next, &e->set.val, 1);
+    case SE_GAIN:
+        if (arity(S, f, 3, 3, "(gain NAME G)"))
+            return -1;
+        return value(S, a, &e->set.val, 1);
+    case SE_PLAY:
+        if (!v->pool)
+            return ERR(f->head->next, "'%s' is a single voice: play takes a voice with (pool N)", v->name);
+        return play(S, f, e);
+    case SE_STOP:
+        return arity(S, f, 2, 2, "(stop NAME)");
+    }
+    return 0;
+}
+
+/* at = '(' 'at' TIME event+ ')' */
+static int f_at(wdrt_scene *S, const sx *f) {
+    double t;
+    if (arity(S, f, 3, -1, "(at TIME EVENT...)") || number(S, f->head->next, &t))
+        return -1;
+    if (!(t >= 0 && t <= 86400))
+        return ERR(f->head->next, "an event's time is in seconds from the start, at most a day");
+    for (const sx *x = f->head->next->next; x; x = x->next) {
+        S->ev = grow(S->ev, S->nev, sizeof *S->ev);
+        scevent *e = &S->ev[S->nev];
+        if (event(S, x, t, e))
+            return -1;
+        e->order = S->nev++;
+    }
+    return 0;
+}
+
+/* ---- the scene ---- */
+
+typedef struct form {
+    const char *name;
+    int (*read)(wdrt_scene *S, const sx *f);
+} form;
+
+static const form forms[] = {
+    {"rate", f_rate},   {"length", f_length}, {"output", f_output}, {"budget", f_budget},
+    {"sleep", f_sleep}, {"voice", f_voice},   {"at", f_at},
+};
+#define NFORMS ((int)(sizeof forms / sizeof *forms))
+
+static int read_form(wdrt_scene *S, const sx *f) {
+    if (f->kind != SX_LIST || !f->head || f->head->kind != SX_SYM)
+        return ERR(f, "expected a form such as (voice ...) or (at ...)");
+    for (int i = 0; i < NFORMS; i++)
+        if (sx_is(f->head, forms[i].name))
+            return forms[i].read(S, f);
+    const char *names[NFORMS];
+    for (int i = 0; i < NFORMS; i++)
+        names[i] = forms[i].name;
+    return unknown(S, f->head, "form", f->head->text, names, NFORMS);
+}
+
+static int cmp_event(const void *a, const void *b) {
+    const scevent *x = a, *y = b;
+    return x->time < y->time ? -1 : x->time > y->time ? 1 : x->order - y->order;
+}
+
+wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err, size_t errlen) {
+    if (!path || !scene)
+        return WDRT_INVALID_ARGS;
+    *scene = NULL;
+    sx_doc *d = sx_read_file(path, err, errlen);
+    if (!d)
+        return WDRT_SYNTAX;
+    wdrt_scene *S = xcalloc(1, sizeof *S);
+    S->doc = d;
+    S->err = err;
+    S->errlen = errlen;
+    S->rate = 48000;
+    S->channels = 1;
+    S->sleep = 1;
+    S->dir = xstrdup(path);
+    char *slash = strrchr(S->dir, '/');
+    if (slash)
+        *slash = 0;
+    else
+        S->dir[0] = 0;
+    for (const sx *f = d->forms; f; f = f->next)
+        if (read_form(S, f)) {
+            wdrt_scene_free(S);
+            return WDRT_SYNTAX;
+        }
+    if (S->nev > 1)
+        qsort(S->ev, (size_t)S->nev, sizeof *S->ev, cmp_event);
+    *scene = S;
+    return WDRT_OK;
+}
+
+void wdrt_scene_free(wdrt_scene *S) {
+    if (!S)
+        return;
+    for (int i = 0; i < S->nvoices; i++) {
+        free(S->voices[i].netlist);
+        free(S->voices[i].params);
+    }
+    for (int i = 0; i < S->nev; i++) {
+        free(S->ev[i].sets);
+        free(S->ev[i].pairs);
+    }
+    free(S->voices);
+    free(S->ev);
+    free(S->dir);
+    sx_free(S->doc);
+    free(S);
+}
+
+int wdrt_scene_nvoices(const wdrt_scene *s) { return s ? s->nvoices : 0; }
+const char *wdrt_scene_voice_name(const wdrt_scene *s, int i) {
+    return s && i >= 0 && i < s->nvoices ? s->voices[i].name : NULL;
+}
+const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i) {
+    return s && i >= 0 && i < s->nvoices ? s->voices[i].netlist : NULL;
+}
+
+/* ---- binding classes ---- */
+
+static int bind_param(wdrt_scene *S, const wdv_class *cls, scparam *p) {
+    const char *names[64];
+    for (int i = 0; i < cls->n_params; i++) {
+        names[i] = cls->params[i].name;
+        if (!strcmp(cls->params[i].name, p->name))
+            p->id = i;
+    }
+    if (p->id >= 0)
+        return 0;
+    if (cls->n_params == 0)
+        return ERR(p->at, "unknown param '%s': voice %s has no params", p->name, cls->name);
+    return unknown(S, p->at, "param", p->name, names, cls->n_params > 64 ? 64 : cls->n_params);
+}
+
+static int bind_pairs(wdrt_scene *S, const wdv_class *cls, scevent *e) {
+    for (int k = 0; k < e->npairs; k++) {
+        scpair *q = &e->pairs[k];
+        const char *names[256];
+        int n = cls->n_ic_targets < 256 ? cls->n_ic_targets : 256;
+        for (int i = 0; i < cls->n_ic_targets; i++) {
+            if (i < 256)
+                names[i] = cls->ic_targets[i].name;
+            if (!strcmp(cls->ic_targets[i].name, q->name))
+                q->id = i;
+        }
+        if (q->id < 0) {
+            if (n == 0)
+                return ERR(q->at, "voice %s has nothing to strike", cls->name);
+            return unknown(S, q->at, "strike target", q->name, names, n);
+        }
+    }
+    return 0;
+}
+
+wdrt_result wdrt_scene_bind(wdrt_scene *S, int i, const wdv_class *cls, char *err, size_t errlen) {
+    if (!S || i < 0 || i >= S->nvoices || !cls)
+        return WDRT_INVALID_ARGS;
+    S->err = err, S->errlen = errlen;
+    scvoice *v = &S->voices[i];
+    v->cls = cls;
+    if (cls->n_outputs == 0)
+        return ERR(v->at, "voice %s has no output to hear", cls->name) ? WDRT_SYNTAX : WDRT_SYNTAX;
+    v->output = 0;
+    if (v->out_name) {
+        const char *names[64];
+        v->output = -1;
+        for (int k = 0; k < cls->n_outputs; k++) {
+            if (k < 64)
+                names[k] = cls->outputs[k].name;
+            if (!strcmp(cls->outputs[k].name, v->out_name))
+                v->output = k;
+        }
+        if (v->output < 0) {
+            unknown(S, v->out_at, "output", v->out_name, names, cls->n_outputs < 64 ? cls->n_outputs : 64);
+            return WDRT_SYNTAX;
+        }
+    }
+    for (int k = 0; k < v->nparams; k++)
+        if (bind_param(S, cls, &v->params[k]))
+            return WDRT_SYNTAX;
+    for (int k = 0; k < S->nev; k++) {
+        scevent *e = &S->ev[k];
+        if (e->voice != i)
+            continue;
+        if (e->kind == SE_SET && bind_param(S, cls, &e->set))
+            return WDRT_SYNTAX;
+        for (int j = 0; j < e->nsets; j++)
+            if (bind_param(S, cls, &e->sets[j]))
+                return WDRT_SYNTAX;
+        if (bind_pairs(S, cls, e))
+            return WDRT_SYNTAX;
+    }
+    return WDRT_OK;
+}
+
+/* ---- rendering ---- */
+
+/* A curve that drives a param or a gain during the render. */
+typedef struct drive {
+    const sx *curve;
+    double offset;  /* s added to the curve's times */
+    wdrt_voice v;
+    int param;      /* -1: the gain */
+    uint64_t next;  /* the next grid frame it posts at */
+    uint64_t end;   /* the frame after which it has posted its last value */
+} drive;
+
+typedef struct render {
+    const wdrt_scene *S;
+    wdrt_engine *e;
+    double fs;
+    int B;
+    drive *dr;
+    int ndr;
+    int ei;          /* next scene event to post */
+    int si;          /* a play posted in parts: 0, or 1 + the sets posted */
+    wdrt_voice note; /* the note that play made */
+} render;
+
+static uint64_t frame_of(double t, double fs) { return (uint64_t)llround(t * fs); }
+
+static wdrt_voice handle(const render *R, int vi) {
+    return R->S->voices[vi].pool ? wdrt_engine_pool(R->e, vi) : wdrt_engine_voice(R->e, vi, 0);
+}
+
+static void add_drive(render *R, const sx *c, double offset, wdrt_voice v, int param) {
+    R->dr = grow(R->dr, R->ndr, sizeof *R->dr);
+    drive *d = &R->dr[R->ndr++];
+    d->curve = c;
+    d->offset = offset;
+    d->v = v;
+    d->param = param;
+    uint64_t f0 = frame_of(offset + curve_start(c), R->fs);
+    d->next = f0 / (uint64_t)R->B * (uint64_t)R->B;
+    d->end = frame_of(offset + curve_end(c), R->fs) + (uint64_t)R->B;
+}
+
+/* Posts one scene event; a play goes in parts (the play, its sets, its
+ * strike), all at its frame. */
+static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
+    wdrt_engine *e = R->e;
+    wdrt_voice v = handle(R, x->voice);
+    int ids[WDRT_STRIKE_MAX];
+    double vals[WDRT_STRIKE_MAX];
+    for (int k = 0; k < x->npairs; k++)
+        ids[k] = x->pairs[k].id, vals[k] = x->pairs[k].value;
+    switch (x->kind) {
+    case SE_STRIKE:
+        return wdrt_engine_strike(e, f, v, x->npairs, ids, vals);
+    case SE_SET:
+        if (x->set.val.curve) {
+            add_drive(R, x->set.val.curve, x->time, v, x->set.id);
+            return WDRT_OK;
+        }
+        return wdrt_engine_set(e, f, v, x->set.id, x->set.val.v);
+    case SE_GAIN:
+        if (x->set.val.curve) {
+            add_drive(R, x->set.val.curve, x->time, v, -1);
+            return WDRT_OK;
+        }
+        return wdrt_engine_gain(e, f, v, x->set.val.v);
+    case SE_STOP:
+        return wdrt_engine_stop(e, f, v);
+    case SE_PLAY: {
+        wdrt_result r;
+        if (R->si == 0) {
+            if ((r = wdrt_engine_play(e, f, x->voice, x->gain, x->priority, &R->note)) != WDRT_OK)
+                return r;
+            R->si = 1;
+        }
+        for (; R->si <= x->nsets; R->si++)
+            if ((r = wdrt_engine_set(e, f, R->note, x->sets[R->si - 1].id, x->sets[R->si - 1].val.v)) != WDRT_OK)
+                return r;
+        if (x->npairs && (r = wdrt_engine_strike(e, f, R->note, x->npairs, ids, vals)) != WDRT_OK)
+            return r;
+        R->si = 0;
+        return WDRT_OK;
+    }
+    }
+    return WDRT_OK;
+}
+
+/* Posts what acts before frame `until`; returns the frame the render may
+ * go to (less than until when the queue filled up). */
+static uint64_t post_due(render *R, uint64_t now, uint64_t until) {
+    const wdrt_scene *S = R->S;
+    while (R->ei < S->nev) {
+        const scevent *x = &S->ev[R->ei];
+        uint64_t f = frame_of(x->time, R->fs);
+        if (f >= until)
+            break;
+        if (post_event(R, x, f) == WDRT_QUEUE_FULL)
+            return f > now ? f : now + 1;
+        R->ei++;
+    }
+    for (int i = 0; i < R->ndr; i++) {
+        drive *d = &R->dr[i];
+        while (d->next < until && d->next <= d->end) {
+            /* the value the ramp from this frame reaches a block later */
+            double t = (double)(d->next + (uint64_t)R->B) / R->fs - d->offset;
+            double x = curve_at(d->curve, t);
+            wdrt_result r = d->param < 0 ? wdrt_engine_gain(R->e, d->next, d->v, x)
+                                         : wdrt_engine_set(R->e, d->next, d->v, d->param, x);
+            if (r == WDRT_QUEUE_FULL)
+                return d->next > now ? d->next : now + 1;
+            d->next += (uint64_t)R->B;
+        }
+    }
+    return until;
+}
+
+static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o, wdrt_pool_config *pc,
+                       double **pv) {
+    memset(R, 0, sizeof *R);
+    R->S = S;
+    R->fs = o && o->rate > 0 ? o->rate : S->rate;
+    for (int i = 0; i < S->nvoices; i++) {
+        const scvoice *v = &S->voices[i];
+        if (!v->cls)
+            return -1;
+        pc[i] = wdrt_pool_config_init(v->cls, v->pool ? v->pool : 1);
+        pc[i].owned = !v->pool;
+        pc[i].output = v->output;
+        pc[i].gain = v->gain_curve ? curve_at(v->gain_curve, 0) : v->gain;
+        pc[i].pan = v->pan;
+        pc[i].priority = v->priority;
+        pc[i].cost_ns = v->cost;
+        pc[i].quiet = v->quiet;
+        pc[i].hold = v->hold;
+        pc[i].virtualize = v->virtualize;
+        pv[i] = xcalloc((size_t)v->cls->n_params + 1, sizeof(double));
+        for (int k = 0; k < v->cls->n_params; k++)
+            pv[i][k] = v->cls->params[k].def;
+        for (int k = 0; k < v->nparams; k++)
+            pv[i][v->params[k].id] = v->params[k].val.curve ? curve_at(v->params[k].val.curve, 0) : v->params[k].val.v;
+        pc[i].params = pv[i];
+    }
+    return 0;
+}
+
+static void add_voice_drives(render *R) {
+    const wdrt_scene *S = R->S;
+    for (int i = 0; i < S->nvoices; i++) {
+        const scvoice *v = &S->voices[i];
+        for (int k = 0; k < v->nparams; k++)
+            if (v->params[k].val.curve)
+                add_drive(R, v->params[k].val.curve, 0, handle(R, i), v->params[k].id);
+        if (v->gain_curve)
+            add_drive(R, v->gain_curve, 0, handle(R, i), -1);
+    }
+}
+
+/* The frame after the scene's last event or curve key. */
+static uint64_t last_frame(const render *R) {
+    const wdrt_scene *S = R->S;
+    double t = 0;
+    for (int i = 0; i < S->nev; i++) {
+        double te = S->ev[i].time;
+        if (S->ev[i].set.val.curve)
+            te += curve_end(S->ev[i].set.val.curve);
+        t = te > t ? te : t;
+    }
+    for (int i = 0; i < S->nvoices; i++) {
+        for (int k = 0; k < S->voices[i].nparams; k++)
+            if (S->voices[i].params[k].val.curve)
+                t = fmax(t, curve_end(S->voices[i].params[k].val.curve));
+        if (S->voices[i].gain_curve)
+            t = fmax(t, curve_end(S->voices[i].gain_curve));
+    }
+    return frame_of(t, R->fs) + 1;
+}
+
+wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, double **frames, long *nframes,
+                              int *nch, double *rate, wdrt_engine_stats *stats) {
+    if (!S || !frames || !nframes || !nch)
+        return WDRT_INVALID_ARGS;
+    render R;
+    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + 1, sizeof *pc);
+    double **pv = xcalloc((size_t)S->nvoices + 1, sizeof *pv);
+    wdrt_result res = WDRT_INVALID_ARGS;
+    double *out = NULL;
+    if (render_init(&R, S, o, pc, pv) != 0)
+        goto done;
+    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices, pc);
+    ec.queue = 1 << 16;
+    ec.pending = 1 << 16;
+    ec.sleep = S->sleep && !(o && o->nosleep);
+    ec.budget_ns = o && o->budget_ns > 0 ? o->budget_ns : S->budget_cpu * 1e9 / R.fs;
+    if ((res = wdrt_engine_init(&ec, NULL, &R.e)) != WDRT_OK)
+        goto done;
+    R.B = ec.block;
+    add_voice_drives(&R);
+    double secs = o && o->seconds > 0 ? o->seconds : S->length;
+    uint64_t n = secs > 0 ? frame_of(secs, R.fs) : 0, last = last_frame(&R);
+    uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0, alloc = 0;
+    const uint64_t chunk = 4096;
+    wdrt_engine_stats st;
+    while (t < cap) {
+        uint64_t want = t + chunk < cap ? t + chunk : cap;
+        uint64_t end = post_due(&R, t, want);
+        if (end > alloc) {
+            alloc = end * 2 < cap ? end * 2 : cap;
+            double *p = realloc(out, sizeof(double) * (size_t)alloc * (size_t)S->channels);
+            if (!p) {
+                res = WDRT_OUT_OF_MEMORY;
+                goto done;
+            }
+            out = p;
+        }
+        wdrt_engine_process(R.e, out + t * (uint64_t)S->channels, (uint32_t)(end - t));
+        t = end;
+        wdrt_engine_get_stats(R.e, &st);
+        if (o && o->progress)
+            o->progress(secs > 0 ? (double)t / (double)cap : -(double)t / R.fs, o->user);
+        if (secs <= 0 && t >= last && R.ei == S->nev && st.awake == 0 && st.virtual_ == 0)
+            break;
+    }
+    wdrt_engine_get_stats(R.e, &st);
+    if (stats)
+        *stats = st;
+    *frames = out;
+    *nframes = (long)t;
+    *nch = S->channels;
+    if (rate)
+        *rate = R.fs;
+    out = NULL;
+    res = WDRT_OK;
+done:
+    free(out);
+    if (R.e)
+        wdrt_engine_uninit(R.e, NULL);
+    for (int i = 0; i < S->nvoices; i++)
+        free(pv[i]);
+    free(pv);
+    free(pc);
+    free(R.dr);
+    return res;
+}

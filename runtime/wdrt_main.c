@@ -1,0 +1,417 @@
+/*
+ * wdrt_main.c - the command line of the runtime, bin/wdrt.
+ *
+ *     wdrt render SCENE.wds [-o OUT.wav] [--seconds S] [--rate HZ]
+ *                 [--budget NS] [--nosleep] [--quiet]
+ *
+ * Each netlist a scene names is turned into a voice by running wdc and
+ * the C compiler once; the shared object is kept under the cache folder
+ * (out/cache, or $WDRT_CACHE) by a hash of the netlist, the files it
+ * includes, the compiler wdc and the C flags, so later renders load it at
+ * once.  A voice is built in a folder of its own and renamed into place,
+ * so renders running at the same time never see half a voice.
+ *
+ * Exit status: 0 ok, 1 input error, 2 usage error, 3 toolchain or
+ * internal error.
+ */
+#include "wdrt.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+enum { EXIT_INPUT = 1, EXIT_USAGE = 2, EXIT_TOOL = 3 };
+
+#define VOICE_CFLAGS "-O2"
+
+static const char usage_text[] =
+    "usage: wdrt render SCENE.wds [-o OUT.wav] [--seconds S] [--rate HZ]\n"
+    "                             [--budget NS] [--nosleep] [--quiet]\n"
+    "       wdrt --help\n"
+    "\n"
+    "render   renders a scene (.wds) to a 32-bit float WAV (default: out/SCENE.wav);\n"
+    "         netlists it names are compiled with wdc and cached under out/cache\n"
+    "         (or $WDRT_CACHE); $WDC names the compiler (default: wdc beside wdrt)\n"
+    "  -o OUT.wav      where to write\n"
+    "  --seconds S     length (default: the scene's, or until its last event has rung down)\n"
+    "  --rate HZ       sample rate (default: the scene's, or 48 kHz)\n"
+    "  --budget NS     ns per sample the voices may cost (default: the scene's budget)\n"
+    "  --nosleep       never put quiet voices to sleep\n"
+    "  --quiet         no progress and no summary\n"
+    "\n"
+    "exit status: 0 ok, 1 input error, 2 usage error, 3 toolchain or internal error\n";
+
+static void usage_error(const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "wdrt: error: ");
+    vfprintf(stderr, fmt, ap);
+    fprintf(stderr, "\n%s", usage_text);
+    va_end(ap);
+    exit(EXIT_USAGE);
+}
+
+/* ---- the voice cache ---- */
+
+typedef struct hash {
+    uint64_t h;
+} hash;
+
+static void hash_bytes(hash *h, const void *p, size_t n) {
+    const unsigned char *b = p;
+    for (size_t i = 0; i < n; i++)
+        h->h = (h->h ^ b[i]) * 0x100000001b3ull;
+}
+
+static char *read_all(const char *path, size_t *len) {
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    size_t cap = 4096, n = 0;
+    char *buf = malloc(cap + 1);
+    size_t k;
+    while (buf && (k = fread(buf + n, 1, cap - n, f)) > 0) {
+        n += k;
+        if (n == cap) {
+            char *b2 = realloc(buf, cap * 2 + 1);
+            if (!b2)
+                free(buf);
+            buf = b2;
+            cap *= 2;
+        }
+    }
+    fclose(f);
+    if (buf) {
+        buf[n] = 0;
+        if (len)
+            *len = n;
+    }
+    return buf;
+}
+
+/* Hashes a netlist and, depth first, the files its .include lines name. */
+static int hash_netlist(hash *h, const char *path, int depth) {
+    size_t n;
+    char *text = read_all(path, &n);
+    if (!text)
+        return -1;
+    hash_bytes(h, path, strlen(path));
+    hash_bytes(h, text, n);
+    for (char *l = text; depth < 16 && l && *l;) {
+        char *nl = strchr(l, '\n');
+        while (*l == ' ' || *l == '\t')
+            l++;
+        if (!strncmp(l, ".include", 8)) {
+            char *q = strchr(l, '"'), *q2 = q ? strchr(q + 1, '"') : NULL;
+            if (q && q2 && (!nl || q2 < nl)) {
+                char inc[PATH_MAX];
+                const char *slash = strrchr(path, '/');
+                int dl = slash && q[1] != '/' ? (int)(slash - path + 1) : 0;
+                snprintf(inc, sizeof inc, "%.*s%.*s", dl, path, (int)(q2 - q - 1), q + 1);
+                hash_netlist(h, inc, depth + 1); /* wdc reports a missing file */
+            }
+        }
+        l = nl ? nl + 1 : NULL;
+    }
+    free(text);
+    return 0;
+}
+
+static int mkdir_p(const char *dir) {
+    char buf[PATH_MAX];
+    snprintf(buf, sizeof buf, "%s", dir);
+    for (char *p = buf + 1; *p; p++)
+        if (*p == '/') {
+            *p = 0;
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+                return -1;
+            *p = '/';
+        }
+    return mkdir(buf, 0777) != 0 && errno != EEXIST ? -1 : 0;
+}
+
+static void remove_dir(const char *dir) {
+    DIR *d = opendir(dir);
+    if (d) {
+        struct dirent *de;
+        while ((de = readdir(d)))
+            if (strcmp(de->d_name, ".") && strcmp(de->d_name, "..")) {
+                char p[PATH_MAX];
+                snprintf(p, sizeof p, "%s/%s", dir, de->d_name);
+                unlink(p);
+            }
+        closedir(d);
+    }
+    rmdir(dir);
+}
+
+/* The NAME of the one NAME.ext in dir, into name. */
+static int find_ext(const char *dir, const char *ext, char *name, size_t cap) {
+    DIR *d = opendir(dir);
+    int found = 0;
+    if (!d)
+        return -1;
+    struct dirent *de;
+    size_t el = strlen(ext);
+    while ((de = readdir(d))) {
+        size_t n = strlen(de->d_name);
+        if (n > el && !strcmp(de->d_name + n - el, ext) && n - el < cap) {
+            memcpy(name, de->d_name, n - el);
+            name[n - el] = 0;
+            found++;
+        }
+    }
+    closedir(d);
+    return found == 1 ? 0 : -1;
+}
+
+static const char *wdc_path(const char *argv0) {
+    static char buf[PATH_MAX];
+    const char *env = getenv("WDC");
+    if (env && *env)
+        return env;
+    ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 8);
+    if (n <= 0) {
+        const char *slash = strrchr(argv0, '/');
+        if (!slash)
+            return "wdc";
+        n = snprintf(buf, sizeof buf - 8, "%s", argv0);
+    }
+    buf[n] = 0;
+    char *slash = strrchr(buf, '/');
+    strcpy(slash ? slash + 1 : buf, "wdc");
+    return access(buf, X_OK) == 0 ? buf : "wdc";
+}
+
+/* Builds (or finds in the cache) the voice of `netlist`.  Returns 0, or
+ * the exit status after printing why. */
+static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *lib) {
+    const char *root = getenv("WDRT_CACHE");
+    if (!root || !*root)
+        root = "out/cache";
+    hash h = {0xcbf29ce484222325ull};
+    hash_bytes(&h, "wdrt-voice-1", 12);
+    if (hash_netlist(&h, netlist, 0) != 0) {
+        fprintf(stderr, "wdrt: error: cannot read netlist '%s': %s\n", netlist, strerror(errno));
+        return EXIT_INPUT;
+    }
+    size_t n;
+    char *bin = read_all(wdc, &n);
+    if (bin) {
+        hash_bytes(&h, bin, n);
+        free(bin);
+    }
+    const char *cc = getenv("CC");
+    hash_bytes(&h, cc ? cc : "cc", strlen(cc ? cc : "cc"));
+    hash_bytes(&h, VOICE_CFLAGS, strlen(VOICE_CFLAGS));
+    char dir[PATH_MAX], name[256], so[PATH_MAX + 300];
+    snprintf(dir, sizeof dir, "%s/%016llx", root, (unsigned long long)h.h);
+    if (find_ext(dir, ".so", name, sizeof name) != 0) {
+        char tmp[PATH_MAX];
+        snprintf(tmp, sizeof tmp, "%s/tmp.XXXXXX", root);
+        if (mkdir_p(root) != 0 || !mkdtemp(tmp)) {
+            fprintf(stderr, "wdrt: error: cannot make the cache folder '%s': %s\n", root, strerror(errno));
+            return EXIT_TOOL;
+        }
+        char *argv[] = {(char *)wdc, (char *)netlist, "-o", tmp, NULL};
+        int status = 0;
+        if (wdrt_spawn(argv, STDERR_FILENO, &status) != WDRT_OK || status != 0) {
+            remove_dir(tmp);
+            if (status == 1)
+                return EXIT_INPUT; /* wdc said what is wrong with the netlist */
+            fprintf(stderr, "wdrt: error: %s failed on '%s' (status %d)\n", wdc, netlist, status);
+            return EXIT_TOOL;
+        }
+        char csrc[PATH_MAX + 300];
+        if (find_ext(tmp, ".c", name, sizeof name) != 0) {
+            remove_dir(tmp);
+            fprintf(stderr, "wdrt: error: %s wrote no voice for '%s'\n", wdc, netlist);
+            return EXIT_TOOL;
+        }
+        snprintf(csrc, sizeof csrc, "%s/%s.c", tmp, name);
+        snprintf(so, sizeof so, "%s/%s.so", tmp, name);
+        if (wdrt_voice_compile(csrc, so, NULL, VOICE_CFLAGS) != WDRT_OK) {
+            remove_dir(tmp);
+            fprintf(stderr, "wdrt: error: the C compiler failed on the voice of '%s'\n", netlist);
+            return EXIT_TOOL;
+        }
+        if (rename(tmp, dir) != 0) /* another render made it first: use theirs */
+            remove_dir(tmp);
+    }
+    snprintf(so, sizeof so, "%s/%s.so", dir, name);
+    if (wdrt_voice_open(so, name, lib) != WDRT_OK) {
+        fprintf(stderr, "wdrt: error: cannot load the voice of '%s' from %s\n", netlist, so);
+        return EXIT_TOOL;
+    }
+    return 0;
+}
+
+/* ---- render ---- */
+
+typedef struct progress {
+    const char *name;
+    int tty;
+    double last;
+} progress;
+
+static void show_progress(double done, void *user) {
+    progress *p = user;
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    double now = ts.tv_sec + ts.tv_nsec * 1e-9;
+    if (!p->tty || now - p->last < 0.1)
+        return;
+    p->last = now;
+    if (done >= 0)
+        fprintf(stderr, "\rwdrt: %s: %3.0f%%", p->name, done * 100);
+    else
+        fprintf(stderr, "\rwdrt: %s: %.1f s", p->name, -done);
+    fflush(stderr);
+}
+
+typedef struct opts {
+    const char *scene, *out;
+    wdrt_render_opts ro;
+    int quiet;
+} opts;
+
+static double take_number(int argc, char **argv, int *i) {
+    if (*i + 1 >= argc)
+        usage_error("%s needs a value", argv[*i]);
+    char *end;
+    double x = strtod(argv[++*i], &end);
+    if (*end || !(x > 0) || !isfinite(x))
+        usage_error("%s takes a positive number, not '%s'", argv[*i - 1], argv[*i]);
+    return x;
+}
+
+static opts parse_render(int argc, char **argv) {
+    opts o;
+    memset(&o, 0, sizeof o);
+    for (int i = 2; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "-o")) {
+            if (i + 1 >= argc)
+                usage_error("-o needs a file name");
+            o.out = argv[++i];
+        } else if (!strcmp(a, "--seconds")) {
+            o.ro.seconds = take_number(argc, argv, &i);
+        } else if (!strcmp(a, "--rate")) {
+            o.ro.rate = take_number(argc, argv, &i);
+            if (o.ro.rate < 1000 || o.ro.rate > 768000)
+                usage_error("--rate lies between 1000 and 768000 Hz");
+        } else if (!strcmp(a, "--budget")) {
+            o.ro.budget_ns = take_number(argc, argv, &i);
+        } else if (!strcmp(a, "--nosleep")) {
+            o.ro.nosleep = 1;
+        } else if (!strcmp(a, "--quiet")) {
+            o.quiet = 1;
+        } else if (a[0] == '-' && a[1]) {
+            usage_error("unknown option '%s'", a);
+        } else if (o.scene) {
+            usage_error("one scene at a time ('%s' and '%s')", o.scene, a);
+        } else {
+            o.scene = a;
+        }
+    }
+    if (!o.scene)
+        usage_error("render needs a scene file");
+    return o;
+}
+
+static char *default_out(const char *scene) {
+    const char *base = strrchr(scene, '/');
+    base = base ? base + 1 : scene;
+    size_t n = strlen(base);
+    if (n > 4 && !strcmp(base + n - 4, ".wds"))
+        n -= 4;
+    char *p = malloc(n + 16);
+    if (p)
+        sprintf(p, "out/%.*s.wav", (int)n, base);
+    return p;
+}
+
+static int cmd_render(int argc, char **argv) {
+    opts o = parse_render(argc, argv);
+    char err[4096];
+    wdrt_scene *s;
+    wdrt_result r = wdrt_scene_load(o.scene, &s, err, sizeof err);
+    if (r != WDRT_OK) {
+        fputs(err, stderr);
+        return EXIT_INPUT;
+    }
+    const char *wdc = wdc_path(argv[0]);
+    int nv = wdrt_scene_nvoices(s), status = 0;
+    wdrt_voice_lib *libs = calloc((size_t)nv + 1, sizeof *libs);
+    for (int i = 0; i < nv && !status; i++) {
+        if (!(status = cached_voice(wdrt_scene_voice_netlist(s, i), wdc, &libs[i])) &&
+            wdrt_scene_bind(s, i, libs[i].cls, err, sizeof err) != WDRT_OK) {
+            fputs(err, stderr);
+            status = EXIT_INPUT;
+        }
+    }
+    double *frames = NULL, rate = 0;
+    long n = 0;
+    int nch = 0;
+    wdrt_engine_stats st;
+    progress pr = {o.scene, isatty(STDERR_FILENO) && !o.quiet, 0};
+    o.ro.progress = show_progress;
+    o.ro.user = &pr;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    if (!status && wdrt_scene_render(s, &o.ro, &frames, &n, &nch, &rate, &st) != WDRT_OK) {
+        fprintf(stderr, "wdrt: error: %s: the scene could not be rendered\n", o.scene);
+        status = EXIT_TOOL;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (pr.tty)
+        fprintf(stderr, "\r\033[K");
+    char *out = o.out ? NULL : default_out(o.scene);
+    const char *path = o.out ? o.out : out;
+    if (!status && !o.out)
+        mkdir_p("out");
+    if (!status && wdrt_wav_write(path, nch, rate, frames, n) != WDRT_OK) {
+        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+        status = EXIT_USAGE;
+    }
+    if (!status && !o.quiet) {
+        double pk = 0, wall = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
+        for (long i = 0; i < n * nch; i++)
+            pk = fabs(frames[i]) > pk ? fabs(frames[i]) : pk;
+        fprintf(stderr,
+                "wdrt: wrote %s: %.2f s, %d channel%s at %.0f Hz, peak %.1f dBFS; %llu events (%llu late), "
+                "%llu sleeps, %llu steals, %llu virtual; %.1fx real time\n",
+                path, n / rate, nch, nch > 1 ? "s" : "", rate, pk > 0 ? 20 * log10(pk) : -400.0,
+                (unsigned long long)st.events, (unsigned long long)st.late, (unsigned long long)st.sleeps,
+                (unsigned long long)st.steals, (unsigned long long)st.virtualized, wall > 0 ? n / rate / wall : 0);
+    }
+    free(out);
+    free(frames);
+    wdrt_scene_free(s);
+    for (int i = 0; i < nv; i++)
+        wdrt_voice_close(&libs[i]);
+    free(libs);
+    return status;
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2)
+        usage_error("no command");
+    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+        fputs(usage_text, stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "render"))
+        return cmd_render(argc, argv);
+    usage_error("unknown command '%s'", argv[1]);
+    return EXIT_USAGE;
+}

@@ -1,0 +1,430 @@
+/*
+ * test_scene.c - scenes (.wds): a scene with one voice renders bit for bit
+ * what `wdc --render --events` renders; bin/wdrt compiles and caches
+ * voices (also with two renders at once); a scene without length lasts
+ * until it has rung down; curves drive gains; every scene error with its
+ * position; and the reader fuzzed.
+ */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "testlib.h"
+
+static tl_voice g_pm, g_mallet;
+static char g_dir[64], g_cwd[PATH_MAX];
+
+static int setup(void **s) {
+    (void)s;
+    if (!getcwd(g_cwd, sizeof g_cwd))
+        return -1;
+    strcpy(g_dir, "/tmp/wdrt-scene.XXXXXX");
+    if (!mkdtemp(g_dir))
+        return -1;
+    if (tl_voice_build("netlists/piano_mid.wdn", 0, &g_pm) != 0)
+        return -1;
+    return tl_voice_build("netlists/mallet_plate.wdn", 0, &g_mallet);
+}
+
+static int teardown(void **s) {
+    (void)s;
+    tl_voice_free(&g_pm);
+    tl_voice_free(&g_mallet);
+    char cmd[256];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", g_dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+static const char *write_file(const char *name, const char *text) {
+    static char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/%s", g_dir, name);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+    return path;
+}
+
+static int run(const char *cmd) {
+    int r = system(cmd);
+    return WIFEXITED(r) ? WEXITSTATUS(r) : -1;
+}
+
+/* A scene with piano_mid struck three times, one param stepped, against
+ * the same events through wdc --render --events --csv (17 digits: every
+ * double exactly). */
+static void test_matches_wdc(void **s) {
+    (void)s;
+    char text[8192];
+    snprintf(text, sizeof text,
+             "; piano_mid struck three times\n"
+             "(rate 48k) (length 1.5)\n"
+             "(voice p \"%s/netlists/piano_mid.wdn\")\n"
+             "(at 0.3 (strike p (v h1 2) (x h1 -1m) (v h2 2) (x h2 -1m) (v h3 2) (x h3 -1m)))\n"
+             "(at 0.61 (set p hit 0.2) (set p detune 2))\n"
+             "(at 0.9001 (strike p (v h2 4.5) (x h2 -1m)))\n",
+             g_cwd);
+    const char *scene = strdup(write_file("a.wds", text));
+    write_file("a.events", "0.3 ic v(h1)=2 x(h1)=-1m v(h2)=2 x(h2)=-1m v(h3)=2 x(h3)=-1m\n"
+                           "0.61 set hit 0.2\n0.61 set detune 2\n0.9001 ic v(h2)=4.5 x(h2)=-1m\n");
+    char cmd[8 * PATH_MAX];
+    snprintf(cmd, sizeof cmd,
+             "bin/wdc netlists/piano_mid.wdn -o %s/v --render %s/b.wav --csv %s/b.csv --events %s/a.events "
+             "--seconds 1.5 >/dev/null",
+             g_dir, g_dir, g_dir, g_dir);
+    assert_int_equal(run(cmd), 0);
+    char err[2048] = "";
+    wdrt_scene *sc;
+    assert_int_equal(wdrt_scene_load(scene, &sc, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_nvoices(sc), 1);
+    assert_int_equal(wdrt_scene_bind(sc, 0, g_pm.cls, err, sizeof err), WDRT_OK);
+    double *y, rate;
+    long n;
+    int nch;
+    wdrt_engine_stats st;
+    wdrt_render_opts o = {0};
+    o.nosleep = 1;
+    assert_int_equal(wdrt_scene_render(sc, &o, &y, &n, &nch, &rate, &st), WDRT_OK);
+    assert_int_equal(n, 72000);
+    assert_int_equal(nch, 1);
+    assert_true(rate == 48000);
+    assert_int_equal((int)st.events, 4);
+    char csv[PATH_MAX];
+    snprintf(csv, sizeof csv, "%s/b.csv", g_dir);
+    FILE *f = fopen(csv, "r");
+    assert_non_null(f);
+    long i = 0, differ = 0;
+    double a, b;
+    while (fscanf(f, "%lf,%lf", &a, &b) == 2) {
+        assert_true(i < n);
+        differ += y[i] != a;
+        i++;
+    }
+    fclose(f);
+    assert_int_equal(i, n);
+    assert_int_equal(differ, 0);
+    /* with sleep on (the default) too: piano_mid never falls quiet here */
+    free(y);
+    assert_int_equal(wdrt_scene_render(sc, NULL, &y, &n, &nch, &rate, &st), WDRT_OK);
+    assert_int_equal((int)st.sleeps, 0);
+    free(y);
+    wdrt_scene_free(sc);
+    free((void *)scene);
+}
+
+/* bin/wdrt: two renders at once into an empty cache both succeed and
+ * agree; the second render of the scene finds the voice cached. */
+static void test_cli_cache(void **s) {
+    (void)s;
+    char text[8192];
+    snprintf(text, sizeof text,
+             "(length 0.5) (output stereo)\n"
+             "(voice m \"%s/netlists/mallet_plate.wdn\" (pool 4) (pan -0.5))\n"
+             "(at 0.1 (play m (strike (v m 1) (x m -0.2m))))\n"
+             "(at 0.2 (play m (gain 0.5) (set hard 2) (strike (v m 2) (x m -0.2m))))\n",
+             g_cwd);
+    write_file("c.wds", text);
+    char cmd[8 * PATH_MAX];
+    snprintf(cmd, sizeof cmd,
+             "export WDRT_CACHE=%s/cache; bin/wdrt render %s/c.wds -o %s/c1.wav --quiet & "
+             "bin/wdrt render %s/c.wds -o %s/c2.wav --quiet; r=$?; wait $!; exit $(( r + $? ))",
+             g_dir, g_dir, g_dir, g_dir, g_dir);
+    assert_int_equal(run(cmd), 0);
+    snprintf(cmd, sizeof cmd, "cmp -s %s/c1.wav %s/c2.wav", g_dir, g_dir);
+    assert_int_equal(run(cmd), 0);
+    snprintf(cmd, sizeof cmd, "test $(ls %s/cache | grep -vc tmp) -eq 1", g_dir);
+    assert_int_equal(run(cmd), 0);
+    int nch;
+    double fs, *fr;
+    long nf;
+    snprintf(cmd, sizeof cmd, "%s/c1.wav", g_dir);
+    assert_int_equal(wdrt_wav_read(cmd, &nch, &fs, &fr, &nf), WDRT_OK);
+    assert_int_equal(nch, 2);
+    assert_int_equal(nf, 24000);
+    /* panned left: the left channel louder; silent before the first note */
+    double l = 0, r = 0;
+    for (long i = 0; i < nf; i++) {
+        if (i < 4800)
+            assert_true(fr[2 * i] == 0 && fr[2 * i + 1] == 0);
+        l += fr[2 * i] * fr[2 * i], r += fr[2 * i + 1] * fr[2 * i + 1];
+    }
+    assert_true(l > 2 * r && r > 0);
+    free(fr);
+    /* errors: a missing netlist, a bad option, a scene error */
+    snprintf(cmd, sizeof cmd, "bin/wdrt render %s/c.wds --frobnicate 2>/dev/null", g_dir);
+    assert_int_equal(run(cmd), 2);
+    write_file("bad.wds", "(voice m \"nowhere.wdn\")\n");
+    snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/bad.wds -o %s/x.wav 2>/dev/null", g_dir,
+             g_dir, g_dir);
+    assert_int_equal(run(cmd), 1);
+    assert_int_equal(run("bin/wdrt --help >/dev/null"), 0);
+}
+
+/* Without (length), a scene lasts until its last event has rung down:
+ * past the last event, ending in silence, and soon after it falls quiet. */
+static void test_rings_down(void **s) {
+    (void)s;
+    char text[8192];
+    snprintf(text, sizeof text,
+             "(voice m \"%s/netlists/mallet_plate.wdn\" (pool 2))\n"
+             "(at 0.25 (play m (strike (v m 1.5) (x m -0.2m))))\n",
+             g_cwd);
+    const char *scene = write_file("r.wds", text);
+    char err[2048];
+    wdrt_scene *sc;
+    assert_int_equal(wdrt_scene_load(scene, &sc, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_bind(sc, 0, g_mallet.cls, err, sizeof err), WDRT_OK);
+    double *y, rate;
+    long n;
+    int nch;
+    assert_int_equal(wdrt_scene_render(sc, NULL, &y, &n, &nch, &rate, NULL), WDRT_OK);
+    print_message("rings down: %.2f s\n", n / rate);
+    assert_true(n > 12000 + 4800 && n < 48000 * 10);
+    double tail = 0, pk = 0;
+    for (long i = 0; i < n; i++) {
+        pk = fmax(pk, fabs(y[i]));
+        if (i > n - 4800)
+            tail = fmax(tail, fabs(y[i]));
+    }
+    assert_true(tail < 1e-5 && pk > 1e-2);
+    assert_true(y[n - 1] == 0);
+    free(y);
+    wdrt_scene_free(sc);
+}
+
+/* A gain curve on a standing voice: the output is the voice's own render
+ * times the curve, linear between keys. */
+static void test_gain_curve(void **s) {
+    (void)s;
+    char text[8192];
+    snprintf(text, sizeof text,
+             "(length 0.5) (sleep off)\n"
+             "(voice m \"%s/netlists/mallet_plate.wdn\" (gain (curve (0 1) (0.1 1) (0.3 0.25))))\n",
+             g_cwd);
+    const char *scene = write_file("g.wds", text);
+    char err[2048];
+    wdrt_scene *sc;
+    assert_int_equal(wdrt_scene_load(scene, &sc, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_bind(sc, 0, g_mallet.cls, err, sizeof err), WDRT_OK);
+    double *y, rate;
+    long n;
+    int nch;
+    assert_int_equal(wdrt_scene_render(sc, NULL, &y, &n, &nch, &rate, NULL), WDRT_OK);
+    const wdv_class *c = g_mallet.cls;
+    void *st = tl_state_new(c, 48000);
+    double **o = tl_bufs_new(c->n_outputs, n);
+    wdrt_render(c, st, NULL, o, n, 64);
+    double pk = 0, err2 = 0;
+    for (long i = 0; i < n; i++) {
+        double t = i / 48000.0, g = t < 0.1 ? 1 : t > 0.3 ? 0.25 : 1 - 0.75 * (t - 0.1) / 0.2;
+        pk = fmax(pk, fabs(o[0][i]));
+        err2 = fmax(err2, fabs(y[i] - g * o[0][i]));
+    }
+    print_message("gain curve: %.1f dB against the curve applied sample by sample\n", tl_db(err2 / pk));
+    /* the gain moves in linear ramps between block frames: its error
+     * against the exact curve is below one block's rounding of the key
+     * times (key at 0.1 s = frame 4800 = 75 blocks: on the grid) */
+    assert_true(err2 <= 1e-12 * pk);
+    tl_bufs_free(o, c->n_outputs);
+    tl_state_free(st);
+    free(y);
+    wdrt_scene_free(sc);
+}
+
+/* ---- errors ---- */
+
+typedef struct bad {
+    const char *text;
+    const char *msg; /* the first line after "PATH:" */
+} bad;
+
+static const bad g_load_errors[] = {
+    {"(rate 48k) (voyce p \"x.wdn\")", "1:13: error: unknown form 'voyce'; did you mean 'voice'?"},
+    {"(rate)", "1:1: error: expected (rate HZ)"},
+    {"(rate \"fast\")", "1:7: error: expected a number, found a string"},
+    {"(rate 10)", "1:7: error: a rate must lie between 1 kHz and 768 kHz"},
+    {"(length -1)", "1:9: error: a length must be positive and at most a day"},
+    {"(output quad)", "1:9: error: expected mono or stereo"},
+    {"(voice p \"x.wdn\")\n(voice p \"y.wdn\")", "2:8: error: a voice named 'p' is already in the scene"},
+    {"(voice p x.wdn)", "1:10: error: expected the netlist's file name in double quotes, found a symbol"},
+    {"(voice p \"x.wdn\" (pool 0))", "1:24: error: a pool holds 1 to 100000 voices"},
+    {"(voice p \"x.wdn\" (pan 2))", "1:23: error: pan lies between -1 (left) and 1 (right)"},
+    {"(voice p \"x.wdn\" (gian 2))", "1:19: error: unknown property 'gian'; did you mean 'gain'?"},
+    {"(voice p \"x.wdn\")\n(at 1 (strike q (v h 1)))", "2:15: error: unknown voice 'q'; did you mean 'p'?"},
+    {"(voice p \"x.wdn\")\n(at -1 (stop p))", "2:5: error: an event's time is in seconds from the start, at most a day"},
+    {"(voice p \"x.wdn\")\n(at 1 (strike p (w h 1)))", "2:17: error: expected (v NODE VALUE) or (x NODE VALUE)"},
+    {"(voice p \"x.wdn\")\n(at 1 (strike p))", "2:7: error: a strike needs at least one (v NODE VALUE) or (x NODE VALUE)"},
+    {"(voice p \"x.wdn\")\n(at 1 (play p (strike (v h 1))))",
+     "2:13: error: 'p' is a single voice: play takes a voice with (pool N)"},
+    {"(voice p \"x.wdn\" (pool 3))\n(at 1 (play p (set f0 (curve (0 1) (1 2)))))",
+     "2:23: error: a curve is not allowed here"},
+    {"(voice p \"x.wdn\")\n(at 1 (set p g (curve (0 1) (0.5 2) (0.2 3))))",
+     "2:38: error: keys of a curve must come in time order"},
+    {"(voice p \"x.wdn\")\n(at 1 (strik p))", "2:8: error: unknown event 'strik'; did you mean 'strike'?"},
+    {"(voice p \"x.wdn\")\n(at 1 (stop p p))", "2:7: error: expected (stop NAME)"},
+    {"(voice p \"x.wdn\" (pos 0 1 0))", "1:18: error: placing a voice in space needs the spatial layer, which this build does not have"},
+    {"(budget 0)", "1:9: error: a budget is a positive share of one core (0.5 = half)"},
+    {"42", "1:1: error: expected a form such as (voice ...) or (at ...)"},
+    {"(voice p \"x.wdn\"", "1:17: error: expected ')' to close '(' at 1:1"}, /* the reader's */
+};
+
+static void check_error(const char *path, const char *err, const char *msg) {
+    char want[4096 + 1024];
+    snprintf(want, sizeof want, "%s:%s", path, msg);
+    if (strncmp(err, want, strlen(want)) != 0)
+        fail_msg("expected \"%s\", got \"%s\"", want, err);
+}
+
+static void test_load_errors(void **s) {
+    (void)s;
+    for (size_t i = 0; i < sizeof g_load_errors / sizeof *g_load_errors; i++) {
+        const char *path = strdup(write_file("e.wds", g_load_errors[i].text));
+        char err[2048] = "";
+        wdrt_scene *sc = NULL;
+        assert_int_equal(wdrt_scene_load(path, &sc, err, sizeof err), WDRT_SYNTAX);
+        assert_null(sc);
+        check_error(path, err, g_load_errors[i].msg);
+        /* the source line and a caret follow */
+        assert_non_null(strchr(err, '^'));
+        free((void *)path);
+    }
+}
+
+static const bad g_bind_errors[] = {
+    {"(voice m \"x.wdn\" (param hrad 2))", "1:25: error: unknown param 'hrad'; did you mean 'hard'?"},
+    {"(voice m \"x.wdn\" (output v3))", "1:26: error: unknown output 'v3'; did you mean 'v1'?"},
+    {"(voice m \"x.wdn\")\n(at 1 (set m hardness 2))", "2:14: error: unknown param 'hardness'"},
+    {"(voice m \"x.wdn\")\n(at 1 (strike m (v m 1) (x q 1)))",
+     "2:25: error: unknown strike target 'x(q)'"},
+    {"(voice m \"x.wdn\" (pool 2))\n(at 1 (play m (set hrd 1)))", "2:20: error: unknown param 'hrd'; did you mean 'hard'?"},
+};
+
+static void test_bind_errors(void **s) {
+    (void)s;
+    for (size_t i = 0; i < sizeof g_bind_errors / sizeof *g_bind_errors; i++) {
+        const char *path = strdup(write_file("b.wds", g_bind_errors[i].text));
+        char err[2048] = "";
+        wdrt_scene *sc = NULL;
+        assert_int_equal(wdrt_scene_load(path, &sc, err, sizeof err), WDRT_OK);
+        assert_int_equal(wdrt_scene_bind(sc, 0, g_mallet.cls, err, sizeof err), WDRT_SYNTAX);
+        check_error(path, err, g_bind_errors[i].msg);
+        wdrt_scene_free(sc);
+        free((void *)path);
+    }
+}
+
+/* ---- fuzz ---- */
+
+static const char *const g_seeds[] = {
+    "(rate 48k) (length 2) (output stereo) (budget 0.5)\n"
+    "(voice m \"x.wdn\" (pool 8) (param hard 2) (gain 0.5) (pan -0.3) (priority 2) (quiet -90))\n"
+    "(voice s \"x.wdn\" (output v2) (gain (curve (0 0) (1 1))))\n"
+    "(at 0.1 (play m (gain 0.7) (set hard 3) (strike (v m 1.2) (x m -0.3m))))\n"
+    "(at 0.5 (strike s (v m 1) (x m -1m)) (set m hard (curve (0 1) (0.5 4))))\n"
+    "(at 0.75 (gain s 0.3) (stop m))\n",
+    "; comment\n(voice a \"y.wdn\")(at 0 (strike a (v m 1)))(at 1e-3 (set a hard 1k))",
+};
+
+static int valid_error(const char *path, const char *err) {
+    size_t n = strlen(path);
+    if (strncmp(err, path, n) != 0 || err[n] != ':')
+        return 0;
+    int line, col;
+    char word[16];
+    return sscanf(err + n + 1, "%d:%d: %15s", &line, &col, word) == 3 && line >= 1 && col >= 1 &&
+           !strcmp(word, "error:");
+}
+
+/* Mutated scenes: each loads, binds and renders a little, or gives a
+ * positioned error; nothing crashes or hangs. */
+static void fuzz(long iters, uint64_t seed) {
+    tl_rng r;
+    tl_rng_seed(&r, seed);
+    const char *alphabet = "()\"; \n0123456789.-+ekmuvxsetplaygainstrikecurvepool";
+    char path[PATH_MAX];
+    snprintf(path, sizeof path, "%s/f.wds", g_dir);
+    long ok = 0, errs = 0;
+    for (long it = 0; it < iters; it++) {
+        const char *seedtext = g_seeds[tl_rng_next(&r) % 2];
+        char buf[4096];
+        size_t n = strlen(seedtext);
+        memcpy(buf, seedtext, n);
+        int muts = 1 + (int)(tl_rng_next(&r) % 6);
+        for (int m = 0; m < muts; m++) {
+            size_t at = n ? tl_rng_next(&r) % n : 0;
+            int op = (int)(tl_rng_next(&r) % 4);
+            char c = tl_rng_next(&r) % 8 == 0 ? (char)(tl_rng_next(&r) % 256)
+                                              : alphabet[tl_rng_next(&r) % strlen(alphabet)];
+            if (op == 0 && n + 1 < sizeof buf) {
+                memmove(buf + at + 1, buf + at, n - at);
+                buf[at] = c, n++;
+            } else if (op == 1 && n > 0) {
+                memmove(buf + at, buf + at + 1, n - at - 1), n--;
+            } else if (op == 2 && n > 0) {
+                buf[at] = c;
+            } else {
+                n = at;
+            }
+        }
+        FILE *f = fopen(path, "wb");
+        fwrite(buf, 1, n, f);
+        fclose(f);
+        char err[4096] = "";
+        wdrt_scene *sc = NULL;
+        wdrt_result res = wdrt_scene_load(path, &sc, err, sizeof err);
+        if (res != WDRT_OK) {
+            if (!valid_error(path, err))
+                fail_msg("iteration %ld: bad message \"%s\"", it, err);
+            errs++;
+            continue;
+        }
+        int bound = 1;
+        for (int i = 0; i < wdrt_scene_nvoices(sc) && bound; i++)
+            if (wdrt_scene_bind(sc, i, g_mallet.cls, err, sizeof err) != WDRT_OK) {
+                if (!valid_error(path, err))
+                    fail_msg("iteration %ld: bad message \"%s\"", it, err);
+                bound = 0;
+            }
+        if (bound) {
+            wdrt_render_opts o = {0};
+            o.seconds = 0.02;
+            double *y, rate;
+            long nf;
+            int nch;
+            assert_int_equal(wdrt_scene_render(sc, &o, &y, &nf, &nch, &rate, NULL), WDRT_OK);
+            for (long i = 0; i < nf * nch; i++)
+                assert_true(isfinite(y[i]));
+            free(y);
+            ok++;
+        } else {
+            errs++;
+        }
+        wdrt_scene_free(sc);
+    }
+    print_message("fuzz: %ld scenes rendered, %ld errors reported\n", ok, errs);
+}
+
+static void test_fuzz(void **s) {
+    (void)s;
+    const char *e = getenv("WDRT_FUZZ_ITERS");
+    fuzz(e ? atol(e) : 1500, 0x5ce4e);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache),   cmocka_unit_test(test_rings_down),
+        cmocka_unit_test(test_gain_curve),  cmocka_unit_test(test_load_errors), cmocka_unit_test(test_bind_errors),
+        cmocka_unit_test(test_fuzz),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}

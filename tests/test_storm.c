@@ -1,0 +1,241 @@
+/*
+ * test_storm.c - events posted from a second thread while the engine
+ * processes: 10^5 strikes, sets, plays and stops, none lost, none late,
+ * the render the same bit for bit as with every event posted up front,
+ * and no allocation at all inside wdrt_engine_process (a counting
+ * allocator stands in for malloc).  The Makefile also builds this file
+ * with ThreadSanitizer (test_storm_tsan), which checks the queue; TSan
+ * has its own malloc, so that build leaves the counting allocator out.
+ */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testlib.h"
+
+#if defined(__SANITIZE_THREAD__)
+#define COUNTING 0
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define COUNTING 0
+#endif
+#endif
+#ifndef COUNTING
+#define COUNTING 1
+#endif
+
+#define FS 48000.0
+#define NEV 100000
+#define EVERY 3   /* frames between events */
+#define HOST 256  /* frames per process call */
+
+/* ---- the counting allocator: counts what the audio thread allocates
+ * while it is inside wdrt_engine_process ---- */
+
+static __thread volatile int g_in_process;
+static volatile long g_rt_allocs;
+
+#if COUNTING
+extern void *__libc_malloc(size_t);
+extern void *__libc_calloc(size_t, size_t);
+extern void *__libc_realloc(void *, size_t);
+extern void *__libc_memalign(size_t, size_t);
+extern void __libc_free(void *);
+
+static void count(void) {
+    if (g_in_process)
+        __atomic_add_fetch(&g_rt_allocs, 1, __ATOMIC_RELAXED);
+}
+void *malloc(size_t n) {
+    count();
+    return __libc_malloc(n);
+}
+void *calloc(size_t a, size_t b) {
+    count();
+    return __libc_calloc(a, b);
+}
+void *realloc(void *p, size_t n) {
+    count();
+    return __libc_realloc(p, n);
+}
+void *aligned_alloc(size_t al, size_t n) {
+    count();
+    return __libc_memalign(al, n);
+}
+int posix_memalign(void **p, size_t al, size_t n) {
+    count();
+    *p = __libc_memalign(al, n);
+    return *p ? 0 : 12;
+}
+void free(void *p) {
+    count();
+    __libc_free(p);
+}
+#endif
+
+static void process(wdrt_engine *e, double *out, uint32_t n) {
+    g_in_process = 1;
+    wdrt_engine_process(e, out, n);
+    g_in_process = 0;
+}
+
+/* ---- the storm ---- */
+
+static tl_voice g_v;
+static int g_ids[2];
+
+static int setup(void **s) {
+    (void)s;
+    if (tl_voice_build("netlists/mallet_plate.wdn", 0, &g_v) != 0)
+        return -1;
+    for (int i = 0; i < g_v.cls->n_ic_targets; i++) {
+        if (!strcmp(g_v.cls->ic_targets[i].name, "v(m)"))
+            g_ids[0] = i;
+        if (!strcmp(g_v.cls->ic_targets[i].name, "x(m)"))
+            g_ids[1] = i;
+    }
+    return 0;
+}
+
+static int teardown(void **s) {
+    (void)s;
+    tl_voice_free(&g_v);
+    return 0;
+}
+
+static wdrt_engine *make_engine(void) {
+    static wdrt_pool_config pc[2];
+    pc[0] = wdrt_pool_config_init(g_v.cls, 1);
+    pc[0].owned = 1;
+    pc[0].cost_ns = 1;
+    pc[1] = wdrt_pool_config_init(g_v.cls, 16);
+    pc[1].cost_ns = 1;
+    pc[1].gain = 0.5;
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 2, 2, pc);
+    ec.queue = 1024;
+    ec.pending = 1024;
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    return e;
+}
+
+/* Event i of the storm, posted at its frame; spins while the queue is
+ * full.  Returns the frame. */
+static uint64_t post(wdrt_engine *e, int i, int spin) {
+    uint64_t f = 1000 + (uint64_t)i * EVERY;
+    wdrt_voice owned = wdrt_engine_voice(e, 0, 0);
+    double v[2] = {0.2 + 0.1 * (i % 13), -0.2e-3};
+    static __thread wdrt_voice last;
+    wdrt_result r;
+    do {
+        switch (i % 5) {
+        case 0: r = wdrt_engine_set(e, f, owned, 0, 0.5 + (i % 7)); break;
+        case 1: r = wdrt_engine_strike(e, f, owned, 2, g_ids, v); break;
+        case 2: r = wdrt_engine_play(e, f, 1, 1.0, 0, &last); break;
+        case 3: r = wdrt_engine_strike(e, f, last, 2, g_ids, v); break;
+        default: r = i % 10 == 4 ? wdrt_engine_stop(e, f, last) : wdrt_engine_gain(e, f, owned, 0.5 + (i % 3)); break;
+        }
+        if (r == WDRT_QUEUE_FULL && spin)
+            sched_yield();
+    } while (r == WDRT_QUEUE_FULL && spin);
+    assert_int_equal(r, WDRT_OK);
+    return f;
+}
+
+typedef struct producer {
+    wdrt_engine *e;
+    uint64_t posted; /* frames before which every event is posted (atomic) */
+} producer;
+
+static void *produce(void *arg) {
+    producer *p = arg;
+    for (int i = 0; i < NEV; i++) {
+        uint64_t f = post(p->e, i, 1);
+        __atomic_store_n(&p->posted, f, __ATOMIC_RELEASE);
+    }
+    __atomic_store_n(&p->posted, UINT64_MAX, __ATOMIC_RELEASE);
+    return NULL;
+}
+
+static const long N = 1000 + (long)NEV * EVERY + 4800;
+
+static void test_storm(void **s) {
+    (void)s;
+    /* the reference: one thread, posting as the render goes */
+    wdrt_engine *e = make_engine();
+    double *ref = calloc((size_t)N * 2, sizeof(double));
+    int next = 0;
+    for (long pos = 0; pos < N; pos += HOST) {
+        uint32_t n = (uint32_t)(N - pos < HOST ? N - pos : HOST);
+        while (next < NEV && 1000 + (uint64_t)next * EVERY < (uint64_t)(pos + n))
+            post(e, next++, 0);
+        process(e, ref + pos * 2, n);
+    }
+    wdrt_engine_stats st;
+    wdrt_engine_get_stats(e, &st);
+    assert_int_equal((int)st.events, NEV);
+    assert_int_equal((int)st.late, 0);
+    wdrt_engine_uninit(e, NULL);
+
+    /* the storm: a producer thread, the audio thread waiting only for
+     * the events of the block it is about to render */
+    e = make_engine();
+    producer p = {e, 0};
+    double *out = calloc((size_t)N * 2, sizeof(double));
+    g_rt_allocs = 0;
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, produce, &p), 0);
+    for (long pos = 0; pos < N; pos += HOST) {
+        uint32_t n = (uint32_t)(N - pos < HOST ? N - pos : HOST);
+        while (__atomic_load_n(&p.posted, __ATOMIC_ACQUIRE) < (uint64_t)(pos + n) &&
+               __atomic_load_n(&p.posted, __ATOMIC_ACQUIRE) != UINT64_MAX)
+            sched_yield();
+        process(e, out + pos * 2, n);
+    }
+    pthread_join(th, NULL);
+    wdrt_engine_get_stats(e, &st);
+    print_message("storm: %llu events, %llu late, %llu to ended notes, %llu steals; %ld allocations in process\n",
+                  (unsigned long long)st.events, (unsigned long long)st.late, (unsigned long long)st.dropped,
+                  (unsigned long long)st.steals, g_rt_allocs);
+    assert_int_equal((int)st.events, NEV);
+    assert_int_equal((int)st.late, 0);
+    assert_int_equal(g_rt_allocs, 0);
+    long diff = 0;
+    for (long i = 0; i < N * 2; i++)
+        diff += out[i] != ref[i];
+    assert_int_equal(diff, 0);
+    double pk = 0;
+    for (long i = 0; i < N * 2; i++)
+        pk = fmax(pk, fabs(out[i]));
+    assert_true(pk > 1e-3 && isfinite(pk));
+    free(out);
+    free(ref);
+    wdrt_engine_uninit(e, NULL);
+}
+
+/* The counting allocator counts: a malloc inside the marked region is
+ * seen (so a zero above means something). */
+static void test_counter_counts(void **s) {
+    (void)s;
+    if (!COUNTING)
+        skip();
+    g_rt_allocs = 0;
+    g_in_process = 1;
+    void *volatile p = malloc(16);
+    g_in_process = 0;
+    free(p);
+    assert_int_equal(g_rt_allocs, 1);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_counter_counts), cmocka_unit_test(test_storm)};
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
