@@ -360,10 +360,59 @@ static void test_memory(void **s) {
     wdrt_engine_uninit(e, NULL);
 }
 
+/* Standing voices past the budget are made virtual, not stopped: the
+ * quietest fades out, and comes back (fading in) once a louder one has
+ * stopped and the budget has room. */
+static void test_virtual(void **s) {
+    (void)s;
+    const wdv_class *c = g_mallet.cls;
+    wdrt_pool_config pc[3];
+    for (int i = 0; i < 3; i++) {
+        pc[i] = wdrt_pool_config_init(c, 1);
+        pc[i].owned = 1;
+        pc[i].cost_ns = 100;
+        pc[i].virtualize = 1;
+    }
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 3, pc);
+    ec.budget_ns = 250;
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    int ids[2] = {ic_id(c, "v(m)"), ic_id(c, "x(m)")};
+    const double sp[3] = {1.5, 0.3, 1.0};
+    for (int i = 0; i < 3; i++) {
+        double vals[2] = {sp[i], -0.2e-3};
+        assert_int_equal(wdrt_engine_strike(e, 0, wdrt_engine_voice(e, i, 0), 2, ids, vals), WDRT_OK);
+    }
+    double *y = run(e, 4800, 1, 64);
+    wdrt_engine_stats st;
+    wdrt_engine_get_stats(e, &st);
+    assert_int_equal((int)st.virtualized, 1);
+    assert_int_equal(st.virtual_, 1);
+    assert_int_equal(st.awake, 2);
+    assert_true(st.cost_ns <= 250);
+    free(y);
+    assert_int_equal(wdrt_engine_stop(e, 4800 + 10, wdrt_engine_voice(e, 0, 0)), WDRT_OK);
+    y = run(e, 4800, 1, 64);
+    wdrt_engine_get_stats(e, &st);
+    assert_int_equal((int)st.revived, 1);
+    assert_int_equal(st.virtual_, 0);
+    assert_int_equal(st.awake, 2);
+    /* it fades back in: no jump at the block it returns in */
+    double step = 0, own = 0;
+    for (long i = 1; i < 4800; i++)
+        step = fmax(step, fabs(y[i] - y[i - 1]));
+    for (long i = 1; i < 4800; i++)
+        own = fmax(own, fabs(y[i]));
+    assert_true(step < own);
+    free(y);
+    wdrt_engine_uninit(e, NULL);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_play_at_frame), cmocka_unit_test(test_sleep),     cmocka_unit_test(test_budget),
         cmocka_unit_test(test_param_ramp),    cmocka_unit_test(test_pool_steal), cmocka_unit_test(test_memory),
+        cmocka_unit_test(test_virtual),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
