@@ -1,5 +1,5 @@
 # wdc: wave-digital compiler and sound runtime.
-# `make` builds bin/wdc; `make demo` installs what is missing, builds,
+# `make` builds bin/wdc and bin/wdrt; `make demo` installs what is missing, builds,
 # compiles every example netlist and renders it to out/; `make test` runs
 # the test suite; `make bench` prints ns/sample of every example voice, then
 # the speed and accuracy of each nonlinear one per solver and rate.
@@ -10,7 +10,7 @@ CFLAGS  += -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -Wall -Wextra -p
 LDLIBS  = -llapacke -lsndfile -ldl -lm
 
 GEN_SRCS   = $(filter-out gen/main.c,$(wildcard gen/*.c))
-RT_SRCS    = $(wildcard runtime/*.c)
+RT_SRCS    = $(filter-out runtime/wdrt_main.c,$(wildcard runtime/*.c))
 TEST_LIB   = $(filter-out tests/test_%.c,$(wildcard tests/*.c))
 TEST_SRCS  = $(wildcard tests/test_*.c)
 
@@ -20,7 +20,7 @@ TLIB_OBJS  = $(TEST_LIB:%.c=build/%.o)
 TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
 NETLISTS   = $(wildcard netlists/*.wdn)
 
-all: bin/wdc
+all: bin/wdc bin/wdrt
 
 build/%.o: %.c
 	@mkdir -p $(dir $@)
@@ -32,7 +32,9 @@ build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/em
 		tmpl_wdvoice_h=runtime/wdvoice.h tmpl_nl_diode_i=templates/nl_diode_i.c.tmpl tmpl_nl_wright=templates/nl_wright.c.tmpl tmpl_nl_diode=templates/nl_diode.c.tmpl tmpl_nl_omega=templates/nl_omega.c.tmpl \
 		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_law=templates/nl_law.c.tmpl tmpl_nl_passive=templates/nl_passive.c.tmpl \
 		tmpl_nl_memory=templates/nl_memory.c.tmpl tmpl_nl_memcap=templates/nl_memcap.c.tmpl tmpl_waveguide=templates/waveguide.c.tmpl \
-		tmpl_waveguide_state=templates/waveguide_state.c.tmpl
+		tmpl_waveguide_state=templates/waveguide_state.c.tmpl \
+		tmpl_lv2_c=templates/lv2.c.tmpl tmpl_lv2_manifest=templates/lv2_manifest.ttl.tmpl \
+		tmpl_lv2_plugin=templates/lv2_plugin.ttl.tmpl
 
 build/gen/templates.o: build/gen/templates.c
 	$(CC) $(CFLAGS) -c $< -o $@
@@ -47,8 +49,23 @@ bin/wdc: build/gen/main.o build/libwdc.a build/libwdrt.a
 	@mkdir -p bin
 	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
 
+bin/wdrt: build/runtime/wdrt_main.o build/libwdrt.a
+	@mkdir -p bin
+	$(CC) $(CFLAGS) -o $@ $^ $(LDLIBS)
+
 build/tests/%: build/tests/%.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
-	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lpthread
+
+# The LV2 tests' plugin host (tests/lv2host), on lilv; test_lv2 runs it
+# and bin/wdc, so both come first (order-only: they are not linked in).
+LILV_CFLAGS = $(shell pkg-config --cflags lilv-0 2>/dev/null || echo -I/usr/include/lilv-0)
+LILV_LIBS   = $(shell pkg-config --libs lilv-0 2>/dev/null || echo -llilv-0)
+
+build/tests/lv2host: tests/lv2host/lv2host.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) $(LILV_CFLAGS) -o $@ $< $(LILV_LIBS) -lsndfile -lm
+
+build/tests/test_lv2: | build/tests/lv2host bin/wdc
 
 deps:
 	sh scripts/install-deps.sh
@@ -60,8 +77,25 @@ demo: deps
 test: deps
 	$(MAKE) run-tests
 
-run-tests: all $(TEST_BINS)
-	sh tests/run.sh $(TEST_BINS)
+run-tests: all build/examples/embed $(TEST_BINS) $(TSAN_BINS)
+	sh tests/run.sh $(TEST_BINS) $(TSAN_BINS)
+
+# examples/embed: an application that compiles a generated voice in, as
+# an application would (no compiler, no dlopen at run time).
+build/examples/piano_key/piano_key.c: scenes/piano_key.wdn blocks/piano.wdn bin/wdc
+	bin/wdc scenes/piano_key.wdn -o build/examples/piano_key
+
+build/examples/embed: examples/embed.c examples/score.h build/examples/piano_key/piano_key.c build/libwdrt.a
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -Iruntime -Ibuild/examples/piano_key -o $@ examples/embed.c \
+		build/examples/piano_key/piano_key.c build/libwdrt.a -lsndfile -lm
+
+# The event storm again under ThreadSanitizer: the engine and the test
+# built with -fsanitize=thread (the counting allocator steps aside).
+TSAN_BINS = build/tests/test_storm_tsan
+build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	@mkdir -p $(dir $@)
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -Iruntime -Igen -o $@ tests/test_storm.c runtime/engine.c \
+		$(TLIB_OBJS) build/libwdc.a build/libwdrt.a -lcmocka $(LDLIBS) -lpthread
 
 bench: deps
 	sh scripts/install-bench-deps.sh
@@ -84,6 +118,12 @@ build/bench/stkshim.o: bench/stkshim.cpp
 
 build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lstk -lstdc++
+
+# Long fuzzing runs: the S-expression reader over 2 million mutated texts
+# (about a minute; WDRT_FUZZ_SEED=N picks another sequence).
+soak: build/tests/test_sexp
+	WDRT_FUZZ_ITERS=2000000 build/tests/test_sexp
+.PHONY: soak
 
 format:
 	clang-format -i gen/*.c gen/*.h runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c bench/*.h

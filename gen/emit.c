@@ -1171,11 +1171,7 @@ static const char *state_fields(Ctx *x, int nd) {
 
 /* ---- templates ---- */
 
-typedef struct Hole {
-    const char *name, *text;
-} Hole;
-
-static const char *fill(const char *tmpl, const Hole *holes, int n) {
+const char *fill(const char *tmpl, const Hole *holes, int n) {
     Buf b = {0};
     for (const char *p = tmpl; *p;) {
         const char *h = strstr(p, "{{");

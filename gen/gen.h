@@ -14,6 +14,7 @@
  *            block's nonlinear element gathered into a rigid root)
  *   scatter.c  scattering matrices (LAPACKE) and the losslessness check
  *   emit.c   Wdf -> C text of the voice, through templates/
+ *   lv2.c    Wdf -> an LV2 plugin bundle of the voice
  *
  * Memory policy: everything the compiler allocates comes from an arena
  * (calloc) and is released only when the process exits.  Errors in the
@@ -503,6 +504,15 @@ double scatter_check(const Wdf *w, double tol);
 
 /* emit.c */
 
+/* A template hole and the text that fills it. */
+typedef struct Hole {
+    const char *name, *text;
+} Hole;
+
+/* tmpl with every {{name}} replaced by its hole's text (arena); a hole
+ * without a value is an internal error. */
+const char *fill(const char *tmpl, const Hole *holes, int n);
+
 typedef struct EmitOpts {
     bool single;        /* float precision */
     Solver solver;      /* for nonlinear elements that name none */
@@ -515,5 +525,18 @@ typedef struct EmitOpts {
 
 /* Writes outdir/NAME.c and outdir/NAME.h; returns 0 or -1 (I/O error). */
 int emit_voice(const Wdf *w, const EmitOpts *o);
+
+/* lv2.c */
+
+enum { LV2_ENETLIST = -1, LV2_EIO = -2, LV2_ETOOL = -3 };
+
+/* Writes an LV2 bundle of the voice into dir (made if missing):
+ * manifest.ttl, NAME.ttl and NAME.so, the voice (emitted with o, into a
+ * temporary directory) and templates/lv2.c.tmpl compiled together with
+ * $CC (default cc).  The plugin's URI is urn:wdc:voice:NAME.  Returns 0,
+ * or after printing why: LV2_ENETLIST (nothing to export), LV2_EIO (a
+ * file cannot be written), LV2_ETOOL (the C compiler failed).  Errors at
+ * a netlist position (a param without a range) unwind through diag. */
+int lv2_bundle(const Wdf *w, const EmitOpts *o, const char *dir);
 
 #endif

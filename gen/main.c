@@ -12,11 +12,11 @@
 enum { EXIT_NETLIST = 1, EXIT_USAGE = 2, EXIT_TOOL = 3 };
 
 typedef struct Opts {
-    const char *file, *outdir, *render, *csv, *dot, *events;
+    const char *file, *outdir, *render, *csv, *dot, *events, *lv2;
     const char *inputs[16];
     int ninputs;
     double seconds, rate;
-    bool check, single, dump_elab, dump_wdf, tableau;
+    bool check, single, dump_elab, dump_wdf, tableau, has_outdir;
     Solver solver;
     int table, maxit;
     double tol;
@@ -28,6 +28,7 @@ static void usage(FILE *f) {
         "       wdc FILE.wdn --check\n"
         "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
         "                    [--csv OUT.csv] [--events FILE]\n"
+        "       wdc FILE.wdn --lv2 DIR [--precision double|float]  an LV2 plugin bundle of the voice\n"
         "       wdc FILE.wdn --dot OUT.dot\n"
         "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n"
         "nonlinear elements: [--solver newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
@@ -64,7 +65,10 @@ static Opts parse_args(int argc, char **argv) {
         } else if (!strcmp(a, "--version")) {
             printf("wdc %s\n", WDC_VERSION);
             exit(0);
-        } else if (!strcmp(a, "-o")) o.outdir = TAKE();
+        } else if (!strcmp(a, "-o")) {
+            o.outdir = TAKE();
+            o.has_outdir = true;
+        } else if (!strcmp(a, "--lv2")) o.lv2 = TAKE();
         else if (!strcmp(a, "--check")) o.check = true;
         else if (!strcmp(a, "--render")) o.render = TAKE();
         else if (!strcmp(a, "--csv")) o.csv = TAKE();
@@ -115,6 +119,8 @@ static Opts parse_args(int argc, char **argv) {
         usage_error("%s", "no netlist given");
     if ((o.csv || o.events || o.ninputs || o.seconds > 0) && !o.render)
         usage_error("%s", "--csv, --events, --input and --seconds need --render");
+    if (o.lv2 && (o.render || o.has_outdir))
+        usage_error("%s", "--lv2 writes only the bundle: it does not combine with -o or --render");
     return o;
 }
 
@@ -435,6 +441,12 @@ int main(int argc, char **argv) {
         return 0;
     EmitOpts eo = {.single = o.single, .outdir = o.outdir, .solver = o.solver, .table = o.table, .tol = o.tol,
                    .maxit = o.maxit};
+    if (o.lv2) {
+        diag.jmp = &jb;
+        int r = lv2_bundle(w, &eo, o.lv2);
+        diag.jmp = NULL;
+        return r == 0 ? 0 : r == LV2_ENETLIST ? EXIT_NETLIST : r == LV2_EIO ? EXIT_USAGE : EXIT_TOOL;
+    }
     diag.jmp = &jb;
     int emitted = mkdir_p(o.outdir) == 0 ? emit_voice(w, &eo) : -1;
     diag.jmp = NULL;

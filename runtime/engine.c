@@ -663,16 +663,19 @@ static void rest(wdrt_engine *e, inst *v) {
 }
 
 /* The least important of a pool's voices that may be taken for a new
- * note: a virtual one first, then by priority, level and age. */
+ * note: a virtual one first, then by priority and level; notes too young
+ * to have a level only when every voice is young, the oldest first. */
 static int victim(const wdrt_engine *e, const pool *p) {
     int best = -1;
     for (int i = p->first; i < p->first + p->cfg.voices; i++) {
-        const inst *v = &e->inst[i];
+        const inst *v = &e->inst[i], *b = best >= 0 ? &e->inst[best] : NULL;
         if (v->mode == M_VIRTUAL)
             return i;
-        if (best < 0 || v->priority < e->inst[best].priority ||
-            (v->priority == e->inst[best].priority &&
-             (v->level < e->inst[best].level || (v->level == e->inst[best].level && v->age > e->inst[best].age))))
+        int young = v->age < GRACE_BLOCKS, byoung = b && b->age < GRACE_BLOCKS;
+        if (!b || (byoung && !young) ||
+            (young == byoung && (v->priority < b->priority ||
+                                 (v->priority == b->priority &&
+                                  (young ? v->age > b->age : v->level < b->level)))))
             best = i;
     }
     return best;
@@ -893,7 +896,7 @@ static void apply_event(wdrt_engine *e, int k, const ev *x, uint64_t now) {
         cls->set_ic(v->st, x->n, x->ids, x->vals);
         v->eref = cls->energy(v->st);
         v->quiet = 0;
-        if (v->after != A_NONE) { /* struck while fading out: back up */
+        if (v->after != A_NONE && !v->spare) { /* struck while fading out: back up */
             v->after = A_NONE;
             ramp_to(&v->fade, 1, e->B);
         }

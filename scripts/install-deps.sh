@@ -2,7 +2,10 @@
 # install-deps.sh - installs what building wdc needs, and nothing else.
 #
 # Checks for a C compiler and for the headers and libraries of libsndfile,
-# LAPACKE and cmocka, and for clang (the tests compile voices with it); installs only the missing Debian packages with
+# LAPACKE and cmocka, for clang (the tests compile voices with it), and for
+# what the LV2 tests use: the LV2 headers and lv2_validate (lv2-dev), lilv
+# (liblilv-dev), lv2apply (lilv-utils) and sord_validate (sordi, which
+# lv2_validate runs); installs only the missing Debian packages with
 # apt-get (after one `apt-get update`), through sudo when not root.
 # Exit status: 0 when everything is present afterwards, 1 otherwise.
 #
@@ -71,6 +74,26 @@ else say "cmocka: missing"; missing="$missing libcmocka-dev"; fi
 if command -v clang >/dev/null 2>&1; then say "clang: found"
 else say "clang: missing"; missing="$missing clang"; fi
 
+# the LV2 tests: lilv's headers live in their own directory
+have_lilv() {
+    have_cc || { [ -f /usr/include/lilv-0/lilv/lilv.h ]; return $?; }
+    printf '#include <lilv/lilv.h>\nint main(void) { lilv_world_free(lilv_world_new()); return 0; }\n' \
+        >"$TMPDIR_DEPS/l.c"
+    # shellcheck disable=SC2046 # pkg-config's flags are meant to split
+    "$CC_CMD" "$TMPDIR_DEPS/l.c" -o "$TMPDIR_DEPS/l.out" \
+        $(pkg-config --cflags --libs lilv-0 2>/dev/null || echo -I/usr/include/lilv-0 -llilv-0) \
+        >/dev/null 2>&1
+}
+have_lv2() { have_lib lv2/core/lv2.h c && command -v lv2_validate >/dev/null 2>&1; }
+if have_lv2; then say "LV2 headers and lv2_validate: found"
+else say "LV2 headers and lv2_validate: missing"; missing="$missing lv2-dev"; fi
+if have_lilv; then say "lilv: found"
+else say "lilv: missing"; missing="$missing liblilv-dev"; fi
+if command -v lv2apply >/dev/null 2>&1; then say "lv2apply: found"
+else say "lv2apply: missing"; missing="$missing lilv-utils"; fi
+if command -v sord_validate >/dev/null 2>&1; then say "sord_validate: found"
+else say "sord_validate: missing"; missing="$missing sordi"; fi
+
 if [ -z "$missing" ]; then
     say "everything needed is installed"
     exit 0
@@ -86,6 +109,10 @@ have_lib sndfile.h sndfile || still="$still sndfile.h/-lsndfile"
 have_lib lapacke.h lapacke || still="$still lapacke.h/-llapacke"
 have_cmocka || still="$still cmocka.h/-lcmocka"
 command -v clang >/dev/null 2>&1 || still="$still clang"
+have_lv2 || still="$still lv2/core/lv2.h/lv2_validate"
+have_lilv || still="$still lilv/lilv.h/-llilv-0"
+command -v lv2apply >/dev/null 2>&1 || still="$still lv2apply"
+command -v sord_validate >/dev/null 2>&1 || still="$still sord_validate"
 [ -z "$still" ] || fail "still missing after installing:$still"
 say "done: installed$missing"
 exit 0

@@ -408,11 +408,41 @@ static void test_virtual(void **s) {
     wdrt_engine_uninit(e, NULL);
 }
 
+/* More notes in one block than the pool holds: young notes are stolen
+ * oldest first, their fades end, and once everything has rung down every
+ * instance is free again (a stolen note's own events never revive it). */
+static void test_chord_overflow(void **s) {
+    (void)s;
+    const wdv_class *c = g_mallet.cls;
+    wdrt_pool_config pc = wdrt_pool_config_init(c, 4);
+    pc.cost_ns = 1;
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 1, &pc);
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    int ids[2] = {ic_id(c, "v(m)"), ic_id(c, "x(m)")};
+    for (int i = 0; i < 6; i++) {
+        double vals[2] = {0.5 + 0.2 * i, -0.2e-3};
+        wdrt_voice note;
+        assert_int_equal(wdrt_engine_play(e, 10 + 2 * (uint64_t)i, 0, 1.0, 0, &note), WDRT_OK);
+        assert_int_equal(wdrt_engine_set(e, 10 + 2 * (uint64_t)i, note, 0, 1.5), WDRT_OK);
+        assert_int_equal(wdrt_engine_strike(e, 10 + 2 * (uint64_t)i, note, 2, ids, vals), WDRT_OK);
+    }
+    double *y = run(e, (long)(4 * FS), 1, 512);
+    wdrt_engine_stats st;
+    wdrt_engine_get_stats(e, &st);
+    assert_int_equal((int)st.steals, 2);
+    assert_int_equal((int)st.cuts, 0);
+    assert_int_equal(st.awake, 0);
+    assert_int_equal(st.free, 4);
+    free(y);
+    wdrt_engine_uninit(e, NULL);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_play_at_frame), cmocka_unit_test(test_sleep),     cmocka_unit_test(test_budget),
         cmocka_unit_test(test_param_ramp),    cmocka_unit_test(test_pool_steal), cmocka_unit_test(test_memory),
-        cmocka_unit_test(test_virtual),
+        cmocka_unit_test(test_virtual),     cmocka_unit_test(test_chord_overflow),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
