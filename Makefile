@@ -77,8 +77,16 @@ demo: deps
 test: deps
 	$(MAKE) run-tests
 
-run-tests: all build/examples/embed $(TEST_BINS) $(TSAN_BINS)
-	sh tests/run.sh $(TEST_BINS) $(TSAN_BINS)
+run-tests: all build/examples/embed $(TEST_BINS) $(TSAN_BINS) $(ASAN_BINS)
+	sh tests/run.sh $(TEST_BINS) $(TSAN_BINS) $(ASAN_BINS)
+
+# The runtime's tests again with the runtime and the test built under
+# AddressSanitizer and UndefinedBehaviorSanitizer (leaks fail them too).
+ASAN_BINS = build/tests/test_engine_asan build/tests/test_scene_asan
+build/tests/%_asan: tests/%.c $(RT_SRCS) runtime/wdrt.h runtime/sexp.h $(TLIB_OBJS) build/libwdc.a
+	@mkdir -p $(dir $@)
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=address,undefined -fno-sanitize-recover=undefined \
+		-fno-omit-frame-pointer -Iruntime -Igen -o $@ $< $(RT_SRCS) $(TLIB_OBJS) build/libwdc.a -lcmocka $(LDLIBS) -lpthread
 
 # examples/embed: an application that compiles a generated voice in, as
 # an application would (no compiler, no dlopen at run time).
@@ -99,16 +107,21 @@ build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h 
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
+	build/bench/rtbench
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+# The engine's economy: sleeping voices, a 1000-voice scene, an 88-key piano.
+build/bench/rtbench: build/bench/rtbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lpthread
 
 # The plucked string against STK's Plucked (libstk-dev, through a C++ shim).
 CXX     ?= g++
@@ -121,8 +134,9 @@ build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/b
 
 # Long fuzzing runs: the S-expression reader over 2 million mutated texts
 # (about a minute; WDRT_FUZZ_SEED=N picks another sequence).
-soak: build/tests/test_sexp
+soak: build/tests/test_sexp build/tests/test_scene
 	WDRT_FUZZ_ITERS=2000000 build/tests/test_sexp
+	WDRT_FUZZ_ITERS=200000 build/tests/test_scene
 .PHONY: soak
 
 format:

@@ -301,7 +301,12 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
         p->cfg.params = NULL;
         for (int j = 0; j < cls->n_params; j++)
             p->param[j] = cls->get_param(p->tmpl, j);
-        p->cost = p->cfg.cost_ns > 0 ? p->cfg.cost_ns : measure_cost(e, cls, m + L->states);
+        p->cost = p->cfg.cost_ns;
+        for (int j = 0; j < i && p->cost <= 0; j++) /* a class is measured once */
+            if (e->pools[j].cfg.cls == cls && e->pools[j].cfg.cost_ns <= 0)
+                p->cost = e->pools[j].cost;
+        if (p->cost <= 0)
+            p->cost = measure_cost(e, cls, m + L->states);
         for (int j = 0; j < p->cfg.voices + p->nspare; j++, k++) {
             inst *v = &e->inst[k];
             memset(v, 0, sizeof *v);

@@ -551,10 +551,11 @@ static int f_at(wdrt_scene *S, const sx *f) {
         return ERR(f->head->next, "an event's time is in seconds from the start, at most a day");
     for (const sx *x = f->head->next->next; x; x = x->next) {
         S->ev = grow(S->ev, S->nev, sizeof *S->ev);
-        scevent *e = &S->ev[S->nev];
+        scevent *e = &S->ev[S->nev]; /* counted at once: a failed one is freed with the scene */
+        e->order = S->nev++;
         if (event(S, x, t, e))
             return -1;
-        e->order = S->nev++;
+        e->order = S->nev - 1;
     }
     return 0;
 }

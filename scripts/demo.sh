@@ -12,6 +12,9 @@
 # event.  Prints one line per render; stops with non-zero status at the
 # first failure.
 #
+# Then renders every scene, scenes/*.wds, with bin/wdrt, and writes LV2
+# bundles of the tone stack and a piano note to out/lv2/.
+#
 # Usage: sh scripts/demo.sh     (or: make demo, which builds bin/wdc first)
 
 set -u
@@ -72,3 +75,24 @@ for f in netlists/*.wdn; do
     done
 done
 echo "demo: $n netlists compiled and rendered"
+
+# Scenes: bin/wdrt renders each scenes/*.wds to out/NAME.wav, compiling the
+# netlists it names once (cached under out/cache).
+WDRT=bin/wdrt
+[ -x "$WDRT" ] || { echo "demo: $WDRT is not built (run make)" >&2; exit 1; }
+ns=0
+for s in scenes/*.wds; do
+    [ -e "$s" ] || continue
+    swav="$OUT/$(basename "$s" .wds).wav"
+    "$WDRT" render "$s" -o "$swav" || { echo "demo: FAILED: $WDRT render $s" >&2; exit 1; }
+    ns=$((ns + 1))
+done
+echo "demo: $ns scenes rendered"
+
+# Plugins: an effect and an instrument as LV2 bundles, for any LV2 host
+# (LV2_PATH=$PWD/out/lv2).
+for f in netlists/tonestack.wdn netlists/piano_mid.wdn; do
+    b="$OUT/lv2/$(basename "$f" .wdn).lv2"
+    "$WDC" "$f" --lv2 "$b" || { echo "demo: FAILED: $WDC $f --lv2 $b" >&2; exit 1; }
+    echo "demo: $f -> $b"
+done
