@@ -19,13 +19,15 @@
 
 #define FS 48000.0
 
-static tl_voice g_mallet, g_piano;
+static tl_voice g_mallet, g_piano, g_msd;
 
 static int setup(void **s) {
     (void)s;
     if (tl_voice_build("netlists/mallet_plate.wdn", 0, &g_mallet) != 0)
         return -1;
     if (tl_voice_build("netlists/piano.wdn", 0, &g_piano) != 0)
+        return -1;
+    if (tl_voice_build("netlists/msd.wdn", 0, &g_msd) != 0)
         return -1;
     return 0;
 }
@@ -34,6 +36,7 @@ static int teardown(void **s) {
     (void)s;
     tl_voice_free(&g_mallet);
     tl_voice_free(&g_piano);
+    tl_voice_free(&g_msd);
     return 0;
 }
 
@@ -438,11 +441,56 @@ static void test_chord_overflow(void **s) {
     wdrt_engine_uninit(e, NULL);
 }
 
+/* A standing voice with an input sleeps while the input is silent and
+ * wakes at the first frame it is not; at rest when it fell asleep, it
+ * renders bit for bit what it renders never sleeping. */
+static void test_input_wake(void **s) {
+    (void)s;
+    const wdv_class *c = g_msd.cls;
+    wdrt_pool_config pc = wdrt_pool_config_init(c, 1);
+    pc.owned = 1;
+    pc.cost_ns = 1;
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 1, &pc);
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    const long n = 24000, k = 12345, hb = 500;
+    double *in = calloc((size_t)n, sizeof(double)), *y = calloc((size_t)n, sizeof(double));
+    for (long i = k; i < k + 40; i++)
+        in[i] = 1.0;
+    wdrt_voice v = wdrt_engine_voice(e, 0, 0);
+    wdrt_engine_stats st;
+    for (long pos = 0; pos < n; pos += hb) {
+        if (pos == 6000) {
+            wdrt_engine_get_stats(e, &st);
+            assert_int_equal(st.asleep, 1); /* asleep well before the input */
+        }
+        assert_int_equal(wdrt_engine_bind_input(e, v, 0, in + pos), WDRT_OK);
+        wdrt_engine_process(e, y + pos, (uint32_t)hb);
+    }
+    wdrt_engine_get_stats(e, &st);
+    assert_true(st.sleeps >= 1 && st.wakes >= 1);
+    void *vs = tl_state_new(c, FS);
+    double **o = tl_bufs_new(c->n_outputs, n);
+    const double *ip[1] = {in};
+    wdrt_render(c, vs, ip, o, n, 64);
+    for (long i = 0; i < n; i++)
+        if (y[i] != o[0][i])
+            fail_msg("frame %ld: %.17g, never asleep %.17g", i, y[i], o[0][i]);
+    assert_true(y[k] != 0 && y[k - 1] == 0);
+    assert_int_equal(wdrt_engine_bind_input(e, wdrt_engine_pool(e, 0), 0, in), WDRT_INVALID_ARGS);
+    tl_bufs_free(o, c->n_outputs);
+    tl_state_free(vs);
+    free(in);
+    free(y);
+    wdrt_engine_uninit(e, NULL);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_play_at_frame), cmocka_unit_test(test_sleep),     cmocka_unit_test(test_budget),
         cmocka_unit_test(test_param_ramp),    cmocka_unit_test(test_pool_steal), cmocka_unit_test(test_memory),
         cmocka_unit_test(test_virtual),     cmocka_unit_test(test_chord_overflow),
+        cmocka_unit_test(test_input_wake),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
