@@ -260,10 +260,13 @@ static double now_ns(void) {
 
 /* ns per sample of one voice of cls: the best of three runs of 4096
  * frames from the state init leaves, in the engine's block length. */
-static double measure_cost(wdrt_engine *e, const wdv_class *cls, void *st) {
+static double measure_cost(wdrt_engine *e, const wdrt_pool_config *pc, void *st) {
+    const wdv_class *cls = pc->cls;
     double best = 1e300;
     for (int rep = 0; rep < 3; rep++) {
         cls->init(st, e->fs);
+        if (pc->bind)
+            pc->bind(st, pc->data);
         for (int k = 0; k < cls->n_outputs; k++)
             e->optr[k] = e->obuf + (size_t)k * (size_t)e->B;
         for (int k = 0; k < cls->n_inputs; k++)
@@ -296,6 +299,8 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
         p->next_seq = (uint32_t)p->cfg.voices + 1;
         p->chain = p->tail = -1;
         cls->init(p->tmpl, e->fs);
+        if (p->cfg.bind)
+            p->cfg.bind(p->tmpl, p->cfg.data);
         for (int j = 0; p->cfg.params && j < cls->n_params; j++)
             cls->set_param(p->tmpl, j, p->cfg.params[j]);
         p->cfg.params = NULL;
@@ -306,7 +311,7 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
             if (e->pools[j].cfg.cls == cls && e->pools[j].cfg.cost_ns <= 0)
                 p->cost = e->pools[j].cost;
         if (p->cost <= 0)
-            p->cost = measure_cost(e, cls, m + L->states);
+            p->cost = measure_cost(e, &p->cfg, m + L->states + L->stride * (size_t)k); /* its own, set below */
         for (int j = 0; j < p->cfg.voices + p->nspare; j++, k++) {
             inst *v = &e->inst[k];
             memset(v, 0, sizeof *v);

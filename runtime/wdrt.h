@@ -104,6 +104,14 @@ typedef struct wdrt_pool_config {
                          stolen to play a new note; default 2 */
     const double *params; /* the params every voice starts with (n_params
                          values, copied at init), or NULL: the defaults */
+    /* Sources the runtime builds (timbre trees, resonators, complexes)
+     * are classes too; their shared data reaches each state through
+     * bind(state, data), called once after init on the state every
+     * instance is copied from (so it must hold only data that may be
+     * copied: a pointer to data that outlives the engine, say).  NULL
+     * for compiled voices. */
+    void (*bind)(void *state, const void *data);
+    const void *data;
 } wdrt_pool_config;
 
 /* Defaults for a pool of `voices` instances of cls, played as notes.

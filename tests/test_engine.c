@@ -485,12 +485,34 @@ static void test_input_wake(void **s) {
     wdrt_engine_uninit(e, NULL);
 }
 
+/* Costs measured at init (on scratch state) leave every voice as init
+ * left it: two standing voices of different classes, the second muted,
+ * render the first exactly as it renders alone. */
+static void test_measured_cost(void **s) {
+    (void)s;
+    wdrt_pool_config pc[2] = {wdrt_pool_config_init(g_mallet.cls, 1), wdrt_pool_config_init(g_msd.cls, 1)};
+    pc[0].owned = pc[1].owned = 1;
+    pc[1].gain = 0;
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 2, pc);
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    assert_true(wdrt_engine_pool_cost(e, 0) > 0 && wdrt_engine_pool_cost(e, 1) > 0);
+    const long n = 4000;
+    double *y = run(e, n, 1, 128), *ref = solo(g_mallet.cls, 0, n, 0, NULL, NULL, 64);
+    for (long i = 0; i < n; i++)
+        if (y[i] != ref[i])
+            fail_msg("frame %ld: %.17g, alone %.17g", i, y[i], ref[i]);
+    free(y);
+    free(ref);
+    wdrt_engine_uninit(e, NULL);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_play_at_frame), cmocka_unit_test(test_sleep),     cmocka_unit_test(test_budget),
         cmocka_unit_test(test_param_ramp),    cmocka_unit_test(test_pool_steal), cmocka_unit_test(test_memory),
         cmocka_unit_test(test_virtual),     cmocka_unit_test(test_chord_overflow),
-        cmocka_unit_test(test_input_wake),
+        cmocka_unit_test(test_input_wake),  cmocka_unit_test(test_measured_cost),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
