@@ -19,6 +19,9 @@ RT_OBJS    = $(RT_SRCS:%.c=build/%.o)
 TLIB_OBJS  = $(TEST_LIB:%.c=build/%.o)
 TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
 NETLISTS   = $(wildcard netlists/*.wdn)
+# tests built again under ThreadSanitizer, and under AddressSanitizer + UBSan
+TSAN_BINS  = build/tests/test_storm_tsan
+ASAN_BINS  = build/tests/test_engine_asan build/tests/test_scene_asan
 
 all: bin/wdc bin/wdrt
 
@@ -82,7 +85,6 @@ run-tests: all build/examples/embed $(TEST_BINS) $(TSAN_BINS) $(ASAN_BINS)
 
 # The runtime's tests again with the runtime and the test built under
 # AddressSanitizer and UndefinedBehaviorSanitizer (leaks fail them too).
-ASAN_BINS = build/tests/test_engine_asan build/tests/test_scene_asan
 build/tests/%_asan: tests/%.c $(RT_SRCS) runtime/wdrt.h runtime/sexp.h $(TLIB_OBJS) build/libwdc.a
 	@mkdir -p $(dir $@)
 	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=address,undefined -fno-sanitize-recover=undefined \
@@ -99,7 +101,6 @@ build/examples/embed: examples/embed.c examples/score.h build/examples/piano_key
 
 # The event storm again under ThreadSanitizer: the engine and the test
 # built with -fsanitize=thread (the counting allocator steps aside).
-TSAN_BINS = build/tests/test_storm_tsan
 build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	@mkdir -p $(dir $@)
 	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -Iruntime -Igen -o $@ tests/test_storm.c runtime/engine.c \

@@ -37,6 +37,9 @@ wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
     /* Samples are written as they are: no clipping or normalisation. */
     sf_command(f, SFC_SET_CLIPPING, NULL, SF_FALSE);
     sf_command(f, SFC_SET_NORM_DOUBLE, NULL, SF_FALSE);
+    /* No PEAK chunk: it carries the time of writing, and the same render
+     * should give the same file, byte for byte. */
+    sf_command(f, SFC_SET_ADD_PEAK_CHUNK, NULL, SF_FALSE);
 
     wdrt_result res = WDRT_OK;
     long done = 0;
