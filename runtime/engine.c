@@ -104,7 +104,6 @@ struct wdrt_engine {
     int nch, B, npools, ninst;
     pool *pools;
     inst *inst;
-    size_t stride;         /* bytes between instance states */
     /* the queue: the producer writes head, the consumer tail */
     ev *q;
     uint32_t qmask, qhead, qtail;
@@ -133,9 +132,8 @@ struct wdrt_engine {
 /* ---- memory layout ---- */
 
 typedef struct layout {
-    size_t engine, pools, inst, params, pramps, inptrs, states, tmpls, q, heap, blk, active, virt, inputs, touched, mix,
+    size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, mix,
         obuf, zero, optr, iptr, total;
-    size_t stride;
     int ninst, nparams, nin, maxout, maxin, qcap;
 } layout;
 
@@ -153,22 +151,20 @@ static int pool_spares(const wdrt_pool_config *p) { return p->owned ? 0 : p->spa
 /* One place computes where everything lives, for get_size and init. */
 static void get_layout(const wdrt_engine_config *c, layout *L) {
     memset(L, 0, sizeof *L);
-    size_t maxstate = 64;
+    size_t states = 0;
     for (int i = 0; i < c->npools; i++) {
         const wdrt_pool_config *p = &c->pools[i];
         int n = p->voices + pool_spares(p);
         L->ninst += n;
+        states += up(p->cls->state_size, 64) * (size_t)(n + 1); /* its instances and its template */
         L->nparams += n * p->cls->n_params + p->cls->n_params;
         if (p->owned)
             L->nin += n * p->cls->n_inputs;
-        if (p->cls->state_size > maxstate)
-            maxstate = p->cls->state_size;
         if (p->cls->n_outputs > L->maxout)
             L->maxout = p->cls->n_outputs;
         if (p->cls->n_inputs > L->maxin)
             L->maxin = p->cls->n_inputs;
     }
-    L->stride = up(maxstate, 64);
     L->qcap = (int)pow2(c->queue);
     size_t o = 0;
 #define PLACE(field, bytes, align) (o = up(o, align), L->field = o, o += (bytes))
@@ -178,8 +174,7 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(params, sizeof(double) * (size_t)L->nparams, 16);
     PLACE(pramps, sizeof(pramp) * (size_t)L->nparams, 16);
     PLACE(inptrs, sizeof(double *) * (size_t)L->nin, 16);
-    PLACE(states, L->stride * (size_t)L->ninst, 64);
-    PLACE(tmpls, L->stride * (size_t)c->npools, 64);
+    PLACE(states, states, 64);
     PLACE(q, sizeof(ev) * (size_t)L->qcap, 16);
     PLACE(heap, sizeof(ev) * (size_t)c->pending, 16);
     PLACE(blk, sizeof(ev) * (size_t)c->pending, 16);
@@ -281,18 +276,32 @@ static double measure_cost(wdrt_engine *e, const wdrt_pool_config *pc, void *st)
     return best > 0.01 ? best : 0.01;
 }
 
+/* Brings a state's coefficients up to its params now (a process call of
+ * no frames), so that instances copied from it do not each redesign on
+ * the audio thread. */
+static void settle(wdrt_engine *e, const wdv_class *cls, void *st) {
+    for (int k = 0; k < cls->n_outputs; k++)
+        e->optr[k] = e->obuf;
+    for (int k = 0; k < cls->n_inputs; k++)
+        e->iptr[k] = e->zero;
+    cls->process(st, e->iptr, e->optr, 0);
+}
+
 static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned char *m, const layout *L) {
     double *par = (double *)(m + L->params);
     pramp *pr = (pramp *)(m + L->pramps);
     const double **ip = (const double **)(m + L->inptrs);
     int k = 0;
+    unsigned char *sm = m + L->states; /* each pool's template, then its instances */
     for (int i = 0; i < c->npools; i++) {
         pool *p = &e->pools[i];
         const wdv_class *cls = c->pools[i].cls;
+        size_t stride = up(cls->state_size, 64);
         p->cfg = c->pools[i];
         p->first = k;
         p->nspare = pool_spares(&p->cfg);
-        p->tmpl = m + L->tmpls + L->stride * (size_t)i;
+        p->tmpl = sm;
+        sm += stride;
         p->param = par;
         par += cls->n_params;
         p->gain = p->cfg.gain;
@@ -304,6 +313,7 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
         for (int j = 0; p->cfg.params && j < cls->n_params; j++)
             cls->set_param(p->tmpl, j, p->cfg.params[j]);
         p->cfg.params = NULL;
+        settle(e, cls, p->tmpl);
         for (int j = 0; j < cls->n_params; j++)
             p->param[j] = cls->get_param(p->tmpl, j);
         p->cost = p->cfg.cost_ns;
@@ -311,11 +321,12 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
             if (e->pools[j].cfg.cls == cls && e->pools[j].cfg.cost_ns <= 0)
                 p->cost = e->pools[j].cost;
         if (p->cost <= 0)
-            p->cost = measure_cost(e, &p->cfg, m + L->states + L->stride * (size_t)k); /* its own, set below */
+            p->cost = measure_cost(e, &p->cfg, sm); /* its own first instance, set below */
         for (int j = 0; j < p->cfg.voices + p->nspare; j++, k++) {
             inst *v = &e->inst[k];
             memset(v, 0, sizeof *v);
-            v->st = m + L->states + L->stride * (size_t)k;
+            v->st = sm;
+            sm += stride;
             memcpy(v->st, p->tmpl, cls->state_size);
             v->pr = pr;
             pr += cls->n_params;
@@ -373,7 +384,6 @@ wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg, void *mem, 
     e->B = cfg->block;
     e->npools = cfg->npools;
     e->ninst = L.ninst;
-    e->stride = L.stride;
     e->pools = (pool *)(m + L.pools);
     e->inst = (inst *)(m + L.inst);
     e->q = (ev *)(m + L.q);
