@@ -27,7 +27,7 @@ all: bin/wdc bin/wdrt
 
 build/%.o: %.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -Iruntime -Igen -c $< -o $@
+	$(CC) $(CFLAGS) -iquote runtime -iquote gen -c $< -o $@
 
 build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/embed.sh
 	@mkdir -p $(dir $@)

@@ -23,6 +23,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "space.h"
+
 #define MAX_BLOCK 4096
 #define RAMP_STEPS 16  /* a param ramp sets the voice this many times at most */
 #define GRACE_BLOCKS 4 /* a new note sounds this many blocks before it can be stolen */
@@ -30,7 +32,9 @@
 #define SEQ_MASK ((1u << SEQ_BITS) - 1)
 #define MAX_POOLS 1000
 
-enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP };
+enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP, EV_MOVE, EV_LISTEN };
+#define AIR_TABLE 256 /* distances the air filter is tabulated at */
+#define LISTEN_MAX 16 /* listener moves one block takes in order */
 enum { M_FREE, M_AWAKE, M_ASLEEP, M_VIRTUAL };
 enum { A_NONE, A_SLEEP, A_FREE, A_VIRTUAL, A_RESET };
 
@@ -86,7 +90,32 @@ typedef struct inst {
     double equiet;     /* energy when its output fell quiet */
     int quiet;         /* grid blocks its output has been quiet */
     double vest, vdec; /* virtual: estimated level and its decay per block */
+    double pos[3];     /* placed: where it is, m */
+    ramp path[3];      /* placed: its motion toward the last move */
+    int slot;          /* placed: its delay line, or -1 */
+    double sgain;      /* placed: the gain of its way to the listener */
 } inst;
+
+/* A delay line of the spatial layer: what a placed voice sounded, and
+ * where it was at each grid block, read by the listener at the retarded
+ * time.  It outlives its voice until the last sound fed has arrived. */
+typedef struct slot {
+    int inst;             /* the voice feeding it, or -1 while it drains */
+    int owner;            /* the voice that fed it last */
+    int busy;
+    uint64_t moved;       /* the last block its position changed in */
+    double *buf;          /* samples, at buf[frame & mask] */
+    double (*hist)[3];    /* position at each grid block start, at hist[block & hmask] */
+    uint64_t start;       /* the first frame fed (earlier: silence) */
+    uint64_t fed;         /* frames before this are in buf */
+    uint64_t hlast;       /* the last block whose position is recorded */
+    double tau;           /* s: the retarded delay last heard at */
+    double gain;          /* distance gain last heard with */
+    double occ, occ_to;   /* occlusion: how much of the muffled path is heard */
+    double occ_gain;      /* and its loss */
+    double lp;            /* state of the muffling low-pass */
+    double air[SPACE_AIR_POLES];
+} slot;
 
 typedef struct pool {
     wdrt_pool_config cfg;
@@ -116,6 +145,20 @@ struct wdrt_engine {
     int *virt, nvirt;
     int *inputs, ninputs;  /* standing voices with bound inputs */
     int *touched, ntouched; /* pools with events chained in this block */
+    /* space */
+    wdrt_space_config sp;
+    slot *slots;
+    int nslots;
+    uint64_t dmask;        /* delay line length - 1 */
+    uint64_t hmask;        /* position history length - 1 */
+    double lis[3], face[3];
+    ramp lpath[3];
+    ev lmoves[LISTEN_MAX];
+    int nlmoves;
+    double *lpos;          /* the listener's position at each frame of the block */
+    double *sig;           /* a slot's arriving signal in the block */
+    double air_p[AIR_TABLE];
+    int air_n[AIR_TABLE];
     double *mix;           /* B * nch */
     double *obuf, *zero;   /* maxout * B outputs; B zeros */
     double **optr;
@@ -132,6 +175,8 @@ struct wdrt_engine {
 /* ---- memory layout ---- */
 
 typedef struct layout {
+    size_t slots, dbufs, hists, walls, lpos, sig;
+    uint64_t dlen, hlen;
     size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, mix,
         obuf, zero, optr, iptr, total;
     int ninst, nparams, nin, maxout, maxin, qcap;
@@ -187,6 +232,18 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(zero, sizeof(double) * (size_t)c->block, 64);
     PLACE(optr, sizeof(double *) * (size_t)(L->maxout + 1), 16);
     PLACE(iptr, sizeof(double *) * (size_t)(L->maxin + 1), 16);
+    int ns = c->space.sources;
+    if (ns > 0) {
+        double md = c->space.max_delay > 0 ? c->space.max_delay : fmin(c->space.max / c->space.c, 3.0);
+        L->dlen = pow2((int)(md * c->rate) + 2 * c->block + 8);
+        L->hlen = pow2((int)(L->dlen / (uint64_t)c->block) + 4);
+    }
+    PLACE(slots, sizeof(slot) * (size_t)ns, 16);
+    PLACE(dbufs, sizeof(double) * (size_t)L->dlen * (size_t)ns, 64);
+    PLACE(hists, sizeof(double) * 3 * (size_t)L->hlen * (size_t)ns, 16);
+    PLACE(walls, sizeof(wdrt_wall) * (size_t)c->space.nwalls, 16);
+    PLACE(lpos, sizeof(double) * 3 * (size_t)c->block, 16);
+    PLACE(sig, sizeof(double) * (size_t)c->block, 16);
 #undef PLACE
     L->total = o;
 }
@@ -217,6 +274,13 @@ wdrt_engine_config wdrt_engine_config_init(double rate, int channels, int npools
     c.sleep = 1;
     c.npools = npools;
     c.pools = pools;
+    c.space.c = 343;
+    c.space.distance = WDRT_DISTANCE_INVERSE;
+    c.space.ref = 1;
+    c.space.max = 1000;
+    c.space.rolloff = 1;
+    c.space.air = 1;
+    c.space.facing[1] = 1;
     return c;
 }
 
@@ -225,8 +289,20 @@ static wdrt_result check_config(const wdrt_engine_config *c) {
         c->block > MAX_BLOCK || c->queue < 1 || c->queue > (1 << 24) || c->pending < 1 || c->pending > (1 << 24) ||
         !(c->budget_ns >= 0) || c->npools < 0 || c->npools > MAX_POOLS || (c->npools && !c->pools))
         return WDRT_INVALID_ARGS;
+    const wdrt_space_config *sp = &c->space;
+    if (sp->sources < 0 || sp->sources > 4096 ||
+        (sp->sources > 0 &&
+         (!(sp->c >= 1 && sp->c <= 1e5) || !(sp->ref > 0) || !(sp->max > sp->ref && sp->max <= 1e6) ||
+          !(sp->rolloff >= 0 && sp->rolloff <= 100) || !(sp->max_delay >= 0 && sp->max_delay <= 30) ||
+          sp->distance < WDRT_DISTANCE_NONE || sp->distance > WDRT_DISTANCE_EXPONENT || sp->nwalls < 0 ||
+          sp->nwalls > 4096 || (sp->nwalls && !sp->walls) ||
+          !isfinite(sp->listener[0] + sp->listener[1] + sp->listener[2]) ||
+          !(fabs(sp->facing[0]) + fabs(sp->facing[1]) > 0))))
+        return WDRT_INVALID_ARGS;
     for (int i = 0; i < c->npools; i++) {
         const wdrt_pool_config *p = &c->pools[i];
+        if (p->placed && (sp->sources <= 0 || !isfinite(p->pos[0] + p->pos[1] + p->pos[2])))
+            return WDRT_INVALID_ARGS;
         if (!p->cls || p->cls->abi_version != WDV_ABI_VERSION || p->voices < 1 || p->voices > (int)(SEQ_MASK / 2) ||
             p->spares < 0 || p->spares > 64 || p->output < 0 || p->output >= p->cls->n_outputs ||
             !isfinite(p->gain) || !(p->pan >= -1 && p->pan <= 1) || !(p->cost_ns >= 0) || !(p->quiet >= 0) ||
@@ -371,6 +447,44 @@ static void start_owned(wdrt_engine *e) {
     }
 }
 
+static void init_space(wdrt_engine *e, const wdrt_engine_config *c, unsigned char *m, const layout *L) {
+    e->sp = c->space;
+    e->nslots = c->space.sources;
+    e->slots = (slot *)(m + L->slots);
+    e->dmask = L->dlen ? L->dlen - 1 : 0;
+    e->hmask = L->hlen ? L->hlen - 1 : 0;
+    for (int i = 0; i < e->nslots; i++) {
+        slot *q = &e->slots[i];
+        q->buf = (double *)(m + L->dbufs) + (size_t)L->dlen * (size_t)i;
+        q->hist = (double(*)[3])(m + L->hists) + (size_t)L->hlen * (size_t)i;
+        q->inst = q->owner = -1;
+    }
+    wdrt_wall *w = (wdrt_wall *)(m + L->walls);
+    if (c->space.nwalls)
+        memcpy(w, c->space.walls, sizeof *w * (size_t)c->space.nwalls);
+    e->sp.walls = w;
+    e->lpos = (double *)(m + L->lpos);
+    e->sig = (double *)(m + L->sig);
+    double f = hypot(c->space.facing[0], c->space.facing[1]);
+    for (int k = 0; k < 3; k++) {
+        e->lis[k] = e->lpath[k].v = e->lpath[k].to = c->space.listener[k];
+        e->face[k] = k < 2 && f > 0 ? c->space.facing[k] / f : 0;
+    }
+    if (e->nslots > 0) /* air filters tabulated over the square root of distance */
+        for (int j = 0; j < AIR_TABLE; j++) {
+            double r = (double)j / (AIR_TABLE - 1);
+            space_air_fit(c->space.max * r * r, c->rate, &e->air_n[j], &e->air_p[j]);
+        }
+    for (int i = 0; i < e->ninst; i++) {
+        inst *v = &e->inst[i];
+        const double *p0 = e->pools[v->pool].cfg.pos;
+        v->slot = -1;
+        v->sgain = 1;
+        for (int k = 0; k < 3; k++)
+            v->pos[k] = v->path[k].v = v->path[k].to = p0[k];
+    }
+}
+
 wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg, void *mem, wdrt_engine **engine) {
     if (!mem || !engine || check_config(cfg) != WDRT_OK)
         return WDRT_INVALID_ARGS;
@@ -407,6 +521,7 @@ wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg, void *mem, 
     e->rel = exp(-cfg->block / (0.05 * cfg->rate));
     e->base = mem;
     init_pools(e, cfg, m, &L);
+    init_space(e, cfg, m, &L);
     start_owned(e);
     e->s.budget_ns = e->budget;
     *engine = e;
@@ -561,6 +676,29 @@ wdrt_result wdrt_engine_stop(wdrt_engine *e, uint64_t frame, wdrt_voice v) {
     return post(e, &x);
 }
 
+wdrt_result wdrt_engine_move(wdrt_engine *e, uint64_t frame, wdrt_voice v, const double pos[3]) {
+    if (!e || voice_pool(e, v) < 0 || !pos || !isfinite(pos[0] + pos[1] + pos[2]) ||
+        !e->pools[voice_pool(e, v)].cfg.placed)
+        return WDRT_INVALID_ARGS;
+    ev x;
+    ev_init(&x, EV_MOVE, frame, v);
+    memcpy(x.vals, pos, 3 * sizeof(double));
+    return post(e, &x);
+}
+
+wdrt_result wdrt_engine_listen(wdrt_engine *e, uint64_t frame, const double pos[3], const double facing[3]) {
+    if (!e || e->nslots <= 0 || !pos || !isfinite(pos[0] + pos[1] + pos[2]) ||
+        (facing && !(isfinite(facing[0] + facing[1]) && fabs(facing[0]) + fabs(facing[1]) > 0)))
+        return WDRT_INVALID_ARGS;
+    ev x;
+    ev_init(&x, EV_LISTEN, frame, 0);
+    memcpy(x.vals, pos, 3 * sizeof(double));
+    x.n = facing != NULL;
+    if (facing)
+        memcpy(x.vals + 3, facing, 3 * sizeof(double));
+    return post(e, &x);
+}
+
 wdrt_result wdrt_engine_bind_input(wdrt_engine *e, wdrt_voice v, int k, const double *samples) {
     int p = e ? voice_pool(e, v) : -1;
     if (p < 0 || !e->pools[p].cfg.owned || (v & SEQ_MASK) == 0 || k < 0 || k >= e->pools[p].cfg.cls->n_inputs)
@@ -675,11 +813,18 @@ static void restore(wdrt_engine *e, inst *v) {
     v->nramps = 0;
 }
 
+/* A voice that stops feeding its delay line lets it drain: what it fed
+ * still travels to the listener. */
+static void detach(wdrt_engine *e, inst *v) {
+    if (v->slot >= 0 && e->slots[v->slot].inst == (int)(v - e->inst))
+        e->slots[v->slot].inst = -1;
+}
+
 static void rest(wdrt_engine *e, inst *v) {
     v->mode = M_FREE;
     v->note = 0;
     v->after = A_NONE;
-    (void)e;
+    detach(e, v);
 }
 
 /* The least important of a pool's voices that may be taken for a new
@@ -738,6 +883,9 @@ static void steal(wdrt_engine *e, int k) {
     w->after = A_FREE;
     ramp_to(&w->fade, 0, e->B);
     activate(e, s);
+    if (v->slot >= 0 && e->slots[v->slot].inst == k) /* the old sound goes on from the same place */
+        e->slots[v->slot].inst = e->slots[v->slot].owner = s;
+    v->slot = -1;
     v->chain = v->tail = -1;
 }
 
@@ -765,6 +913,8 @@ static void play(wdrt_engine *e, const ev *x) {
     v->fade.v = 1, v->fade.left = 0;
     v->gain.v = x->value * p->gain, v->gain.left = 0;
     v->eref = p->cfg.cls->energy(v->st);
+    for (int j = 0; j < 3; j++)
+        v->pos[j] = v->path[j].v = v->path[j].to = p->cfg.pos[j], v->path[j].left = 0;
     activate(e, k);
 }
 
@@ -801,6 +951,10 @@ static void apply_idle(wdrt_engine *e, int k, const ev *x, int own) {
             v->note_gain = x->value;
         v->gain.v = v->note_gain * e->pools[v->pool].gain, v->gain.left = 0;
         break;
+    case EV_MOVE:
+        for (int j = 0; j < 3; j++)
+            v->pos[j] = v->path[j].v = v->path[j].to = x->vals[j], v->path[j].left = 0;
+        break;
     case EV_STOP:
         if (v->mode == M_VIRTUAL)
             unvirt(e, k);
@@ -817,6 +971,13 @@ static void apply_idle(wdrt_engine *e, int k, const ev *x, int own) {
 static void dispatch(wdrt_engine *e, ev *x) {
     if (x->type == EV_PLAY) {
         play(e, x);
+        return;
+    }
+    if (x->type == EV_LISTEN) {
+        if (e->nlmoves < LISTEN_MAX)
+            e->lmoves[e->nlmoves++] = *x;
+        else /* more than a block can take in order: the latest wins at once */
+            e->lmoves[LISTEN_MAX - 1] = *x, e->lmoves[LISTEN_MAX - 1].off = 0;
         return;
     }
     int k = find_inst(e, x->v);
@@ -837,6 +998,8 @@ static void dispatch(wdrt_engine *e, ev *x) {
         p->param[x->n] = x->value;
     if (x->type == EV_GAIN)
         p->gain = x->value;
+    if (x->type == EV_MOVE)
+        memcpy(p->cfg.pos, x->vals, 3 * sizeof(double));
     int chained = 0;
     for (int i = p->first; i < p->first + p->cfg.voices + p->nspare; i++) {
         inst *v = &e->inst[i];
@@ -872,6 +1035,8 @@ static void resolve(wdrt_engine *e, uint64_t t0, int nb) {
 }
 
 /* ---- the audio thread: rendering ---- */
+
+static void place(wdrt_engine *e, int k, uint64_t t0);
 
 static void ramps_next(inst *v, int np) {
     v->nramps = 0;
@@ -946,14 +1111,47 @@ static void apply_event(wdrt_engine *e, int k, const ev *x, uint64_t now) {
     case EV_STOP:
         fade_out(e, v, e->pools[v->pool].cfg.owned ? A_RESET : A_FREE);
         break;
+    case EV_MOVE:
+        for (int j = 0; j < 3; j++)
+            ramp_to(&v->path[j], x->vals[j], e->B);
+        break;
     }
 }
 
 /* Mixes frames [a, b) of the heard output into the mix, with the gain and
  * fade envelopes, and keeps the peak. */
-static void mix_segment(wdrt_engine *e, inst *v, int a, int b) {
+/* Feeds frames [a, b) of a placed voice's heard output, with its gain
+ * and fade, into its delay line (none: it is not heard), and moves it
+ * along its path. */
+static void feed_segment(wdrt_engine *e, inst *v, const double *y, int a, int b, uint64_t t0) {
+    int k = (int)(v - e->inst);
+    slot *q = v->slot >= 0 && e->slots[v->slot].inst == k ? &e->slots[v->slot] : NULL;
+    int moving = v->path[0].left | v->path[1].left | v->path[2].left;
+    double pk = v->peak;
+    for (int n = a; n < b; n++) {
+        double g = v->gain.v * v->fade.v;
+        if (v->gain.left | v->fade.left)
+            g = ramp_next(&v->gain) * ramp_next(&v->fade);
+        double x = g * y[n];
+        pk = fabs(x) > pk ? fabs(x) : pk;
+        if (q)
+            q->buf[(t0 + (uint64_t)n) & e->dmask] = x;
+        if (moving)
+            for (int j = 0; j < 3; j++)
+                v->pos[j] = ramp_next(&v->path[j]);
+    }
+    v->peak = pk;
+    if (q)
+        q->fed = t0 + (uint64_t)b;
+}
+
+static void mix_segment(wdrt_engine *e, inst *v, int a, int b, uint64_t t0) {
     const pool *p = &e->pools[v->pool];
     const double *y = e->obuf + (size_t)p->cfg.output * (size_t)e->B;
+    if (p->cfg.placed) {
+        feed_segment(e, v, y, a, b, t0);
+        return;
+    }
     double *m = e->mix;
     double pk = v->peak, cl = 1, cr = 0;
     if (e->nch == 2) {
@@ -975,14 +1173,14 @@ static void mix_segment(wdrt_engine *e, inst *v, int a, int b) {
     v->peak = pk;
 }
 
-static void process_segment(wdrt_engine *e, inst *v, int a, int b, int callpos) {
+static void process_segment(wdrt_engine *e, inst *v, int a, int b, int callpos, uint64_t t0) {
     const wdv_class *cls = cls_of(e, v);
     for (int j = 0; j < cls->n_outputs; j++)
         e->optr[j] = e->obuf + (size_t)j * (size_t)e->B + a;
     for (int j = 0; j < cls->n_inputs; j++)
         e->iptr[j] = v->in && v->in[j] ? v->in[j] + callpos + a : e->zero;
     cls->process(v->st, e->iptr, e->optr, b - a);
-    mix_segment(e, v, a, b);
+    mix_segment(e, v, a, b, t0);
 }
 
 /* The next event of the instance's chain or its pool's (pool events from
@@ -1011,6 +1209,8 @@ static const ev *peek_event(const wdrt_engine *e, const inst *v, int ci, int pi)
  * segment between the frames its events and ramp steps act at. */
 static void render_inst(wdrt_engine *e, int k, uint64_t t0, int nb, int callpos) {
     inst *v = &e->inst[k];
+    if (e->pools[v->pool].cfg.placed)
+        place(e, k, t0);
     int ci = v->chain, pi = v->spare ? -1 : e->pools[v->pool].chain;
     int pos = v->start;
     while (pos < nb) {
@@ -1029,7 +1229,7 @@ static void render_inst(wdrt_engine *e, int k, uint64_t t0, int nb, int callpos)
             if (r < t0 + (uint64_t)end)
                 end = (int)(r - t0);
         }
-        process_segment(e, v, pos, end, callpos);
+        process_segment(e, v, pos, end, callpos, t0);
         pos = end;
     }
     v->start = 0;
@@ -1039,6 +1239,7 @@ static void render_inst(wdrt_engine *e, int k, uint64_t t0, int nb, int callpos)
 /* Ends a fade-out that has run its course. */
 static void finish(wdrt_engine *e, int k) {
     inst *v = &e->inst[k];
+    detach(e, v);
     switch (v->after) {
     case A_SLEEP:
         v->mode = M_ASLEEP;
@@ -1108,6 +1309,240 @@ static void wake_inputs(wdrt_engine *e, int callpos, int nb) {
             ramp_to(&v->fade, 1, e->B);
         }
     }
+}
+
+/* ---- the audio thread: space ---- */
+
+static double dist3(const double *a, const double *b) {
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* Gives placed voice k a delay line from `now` on: its own if it is still
+ * draining (the silence since it stopped is written), else a free one. */
+static void slot_attach(wdrt_engine *e, int k, uint64_t now) {
+    inst *v = &e->inst[k];
+    slot *q = v->slot >= 0 && e->slots[v->slot].owner == k && e->slots[v->slot].busy ? &e->slots[v->slot] : NULL;
+    if (q) {
+        uint64_t gap = now > q->fed ? now - q->fed : 0;
+        for (uint64_t f = 0; f < gap && f <= e->dmask; f++)
+            q->buf[(q->fed + f) & e->dmask] = 0;
+        q->fed = now > q->fed ? now : q->fed;
+        q->inst = k;
+        return;
+    }
+    int i = 0;
+    while (i < e->nslots && e->slots[i].busy)
+        i++;
+    if (i == e->nslots) {
+        e->s.unplaced++;
+        v->slot = -1;
+        return;
+    }
+    q = &e->slots[i];
+    memset(q->buf, 0, sizeof(double) * (size_t)(e->dmask + 1));
+    for (uint64_t h = 0; h <= e->hmask; h++)
+        memcpy(q->hist[h], v->pos, sizeof v->pos);
+    q->busy = 1;
+    q->inst = q->owner = k;
+    q->start = q->fed = now;
+    q->hlast = now / (uint64_t)e->B;
+    q->moved = 0;
+    q->tau = dist3(v->pos, e->lis) / e->sp.c;
+    q->gain = 0;
+    q->occ = q->occ_to = 0;
+    q->occ_gain = 1;
+    q->lp = 0;
+    memset(q->air, 0, sizeof q->air);
+    v->slot = i;
+}
+
+/* Before a placed voice renders: a delay line, and its position at the
+ * start of each grid block. */
+static void place(wdrt_engine *e, int k, uint64_t t0) {
+    inst *v = &e->inst[k];
+    if (v->slot < 0 || e->slots[v->slot].inst != k)
+        slot_attach(e, k, t0 + (uint64_t)v->start);
+    if (v->slot < 0 || t0 % (uint64_t)e->B)
+        return;
+    slot *q = &e->slots[v->slot];
+    uint64_t b = t0 / (uint64_t)e->B;
+    double *h = q->hist[b & e->hmask], *hp = q->hist[(b - 1) & e->hmask];
+    memcpy(h, v->pos, sizeof v->pos);
+    if (h[0] != hp[0] || h[1] != hp[1] || h[2] != hp[2])
+        q->moved = b;
+    q->hlast = b;
+}
+
+/* Where the source of q was at fractional frame te, and how fast it was
+ * moving (m/s): linear between the positions of grid block starts. */
+static void slot_pos(const wdrt_engine *e, const slot *q, double te, double p[3], double vel[3]) {
+    double b = te > 0 ? te / e->B : 0;
+    uint64_t k = (uint64_t)b;
+    if (k + e->hmask < q->hlast)
+        k = q->hlast - e->hmask, b = (double)k;
+    if (k >= q->hlast) {
+        memcpy(p, q->hist[q->hlast & e->hmask], 3 * sizeof(double));
+        vel[0] = vel[1] = vel[2] = 0;
+        return;
+    }
+    const double *h0 = q->hist[k & e->hmask], *h1 = q->hist[(k + 1) & e->hmask];
+    double f = b - (double)k;
+    for (int j = 0; j < 3; j++) {
+        p[j] = h0[j] + (h1[j] - h0[j]) * f;
+        vel[j] = (h1[j] - h0[j]) * e->fs / e->B;
+    }
+}
+
+/* The retarded delay tau (s) at frame t for a listener at L: what is heard
+ * now left the source where it was tau ago, c tau = |p(t - tau) - L|.
+ * Newton's method from the last tau, which is close. */
+static double retarded(const wdrt_engine *e, const slot *q, double t, const double *L, double tau, double p[3]) {
+    double vel[3];
+    for (int it = 0; it < 3; it++) {
+        slot_pos(e, q, t - tau * e->fs, p, vel);
+        double dx[3] = {p[0] - L[0], p[1] - L[1], p[2] - L[2]};
+        double d = sqrt(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2]);
+        double f = e->sp.c * tau - d;
+        double fp = e->sp.c + (d > 0 ? (dx[0] * vel[0] + dx[1] * vel[1] + dx[2] * vel[2]) / d : 0);
+        double step = f / fp;
+        tau -= step;
+        if (fabs(step) * e->fs < 1e-9)
+            break;
+    }
+    return tau > 2 / e->fs ? tau : 2 / e->fs;
+}
+
+/* The listener's position at each frame of the block, its moves taken at
+ * their frames. */
+static void listener_path(wdrt_engine *e, int nb) {
+    int m = 0;
+    for (int n = 0; n < nb; n++) {
+        while (m < e->nlmoves && e->lmoves[m].off <= n) {
+            const ev *x = &e->lmoves[m++];
+            for (int j = 0; j < 3; j++)
+                ramp_to(&e->lpath[j], x->vals[j], e->B);
+            double f = hypot(x->vals[3], x->vals[4]);
+            if (x->n && f > 0)
+                e->face[0] = x->vals[3] / f, e->face[1] = x->vals[4] / f;
+        }
+        for (int j = 0; j < 3; j++)
+            e->lpos[3 * n + j] = ramp_next(&e->lpath[j]);
+    }
+    e->nlmoves = 0;
+    memcpy(e->lis, e->lpos + 3 * (nb - 1), sizeof e->lis);
+}
+
+/* Walls crossed by the straight path from L to p: their loss in dB. */
+static double wall_loss(const wdrt_engine *e, const double *L, const double *p) {
+    double db = 0;
+    for (int i = 0; i < e->sp.nwalls; i++)
+        if (space_segments_cross(L, p, e->sp.walls[i].from, e->sp.walls[i].to))
+            db += e->sp.walls[i].loss_db;
+    return db;
+}
+
+/* Stereo gains for a sound arriving from p at a listener at L. */
+static void pan_gains(const wdrt_engine *e, const double *L, const double *p, double *gl, double *gr) {
+    double dx = p[0] - L[0], dy = p[1] - L[1], d = hypot(dx, dy);
+    /* right = facing x up */
+    double x = d > 0 ? (dx * e->face[1] - dy * e->face[0]) / d : 0;
+    double th = (x + 1) * 0.7853981633974483;
+    *gl = cos(th), *gr = sin(th);
+}
+
+/* The air filter for distance d: poles interpolated in the table. */
+static void air_poles(const wdrt_engine *e, double d, double *p) {
+    double r = sqrt(d / e->sp.max);
+    r = r < 0 ? 0 : r > 1 ? 1 : r;
+    double x = r * (AIR_TABLE - 1);
+    int j = (int)x < AIR_TABLE - 1 ? (int)x : AIR_TABLE - 2;
+    double f = x - j;
+    for (int k = 0; k < SPACE_AIR_POLES; k++) {
+        double a = k < e->air_n[j] ? e->air_p[j] : 0, b = k < e->air_n[j + 1] ? e->air_p[j + 1] : 0;
+        p[k] = a + (b - a) * f;
+    }
+}
+
+/* What reaches the listener from slot q in this block, mixed in. */
+static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
+    double p0[3], p1[3];
+    double tau0 = retarded(e, q, (double)t0, e->lpos, q->tau, p0);
+    double tau = tau0;
+    /* the source at rest since before what is heard, and the listener
+     * still: the delay is the same for the whole block */
+    int still = (double)q->moved * e->B + e->B < (double)t0 - tau0 * e->fs - 4 && e->lpath[0].left == 0 &&
+                e->lpath[1].left == 0 && e->lpath[2].left == 0 && e->nlmoves == 0;
+    for (int n = 0; n < nb; n++) {
+        double t = (double)(t0 + (uint64_t)n);
+        if (!still && n)
+            tau = retarded(e, q, t, e->lpos + 3 * n, tau, p1);
+        double te = t - tau * e->fs;
+        e->sig[n] = te < (double)q->start - 2 ? 0 : space_read(q->buf, e->dmask, te);
+    }
+    if (still)
+        memcpy(p1, p0, sizeof p1);
+    else
+        retarded(e, q, (double)(t0 + (uint64_t)nb - 1), e->lpos + 3 * (nb - 1), tau, p1);
+    q->tau = tau;
+    const double *L0 = e->lpos, *L1 = e->lpos + 3 * (nb - 1);
+    double d0 = e->sp.c * tau0, d1 = e->sp.c * tau;
+    double g0 = q->gain, g1 = space_distance_gain(e->sp.distance, d1, e->sp.ref, e->sp.max, e->sp.rolloff);
+    if (q->gain == 0 && q->fed <= q->start + (uint64_t)nb)
+        g0 = space_distance_gain(e->sp.distance, d0, e->sp.ref, e->sp.max, e->sp.rolloff);
+    q->gain = g1;
+    /* occlusion, faded in or out over the block */
+    double loss = wall_loss(e, L1, p1);
+    q->occ_to = loss > 0 ? 1 : 0;
+    if (loss > 0)
+        q->occ_gain = pow(10, -loss / 20);
+    double occ_step = (q->occ_to - q->occ) / nb, lpa = exp(-2 * M_PI * 1000 / e->fs);
+    double air[SPACE_AIR_POLES];
+    int nair = 0;
+    if (e->sp.air) {
+        air_poles(e, d1, air);
+        while (nair < SPACE_AIR_POLES && air[nair] > 0)
+            nair++;
+    }
+    double gl0 = 1, gr0 = 0, gl1 = 1, gr1 = 0;
+    if (e->nch == 2) {
+        pan_gains(e, L0, p0, &gl0, &gr0);
+        pan_gains(e, L1, p1, &gl1, &gr1);
+    }
+    for (int n = 0; n < nb; n++) {
+        double w = (double)n / nb, x = e->sig[n];
+        for (int k = 0; k < nair; k++)
+            x = q->air[k] += (1 - air[k]) * (x - q->air[k]);
+        q->lp += (1 - lpa) * (x - q->lp);
+        q->occ += occ_step;
+        x = (1 - q->occ) * x + q->occ * q->occ_gain * q->lp;
+        x *= g0 + (g1 - g0) * w;
+        if (e->nch == 1)
+            e->mix[n] += x;
+        else
+            e->mix[2 * n] += (gl0 + (gl1 - gl0) * w) * x, e->mix[2 * n + 1] += (gr0 + (gr1 - gr0) * w) * x;
+    }
+    q->occ = q->occ_to;
+    for (int k = nair; k < SPACE_AIR_POLES; k++)
+        q->air[k] = q->air[nair ? nair - 1 : 0];
+    /* a voice's audibility for the budget is what arrives */
+    if (q->inst >= 0)
+        e->inst[q->inst].sgain = g1 * (1 - q->occ_to + q->occ_to * q->occ_gain);
+    /* drained: everything fed has arrived */
+    if (q->inst < 0 && (double)q->fed + 4 < (double)(t0 + (uint64_t)nb) - tau * e->fs)
+        q->busy = 0;
+}
+
+static void space_mix(wdrt_engine *e, uint64_t t0, int nb) {
+    if (e->nslots <= 0)
+        return;
+    listener_path(e, nb);
+    int n = 0;
+    for (int i = 0; i < e->nslots; i++)
+        if (e->slots[i].busy) {
+            slot_render(e, &e->slots[i], t0, nb);
+            n++;
+        }
+    e->s.sources = n;
 }
 
 /* ---- the audio thread: the end of a grid block ---- */
@@ -1228,7 +1663,8 @@ static void end_block(wdrt_engine *e) {
     for (int i = 0; i < e->nactive; i++) {
         inst *v = &e->inst[e->active[i]];
         v->last = v->level;
-        v->level = v->peak > v->level * e->rel ? v->peak : v->level * e->rel;
+        double pk = e->pools[v->pool].cfg.placed ? v->peak * v->sgain : v->peak; /* what arrives */
+        v->level = pk > v->level * e->rel ? pk : v->level * e->rel;
         v->age++;
     }
     if (e->sleep)
@@ -1256,6 +1692,7 @@ void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes) {
         memset(e->mix, 0, sizeof(double) * (size_t)nb * (size_t)e->nch);
         for (int i = 0; i < e->nactive; i++)
             render_inst(e, e->active[i], t0, nb, (int)done);
+        space_mix(e, t0, nb);
         for (int i = 0; i < e->ntouched; i++)
             e->pools[e->touched[i]].chain = e->pools[e->touched[i]].tail = -1;
         e->ntouched = 0;

@@ -76,6 +76,44 @@ typedef uint32_t wdrt_voice;
 /* Most (id, value) pairs one strike carries. */
 #define WDRT_STRIKE_MAX 16
 
+/* ---- space ---- */
+
+/* How loudness falls with distance d: OpenAL's clamped models, d taken
+ * in [ref, max]: inverse ref/(ref + rolloff (d - ref)), linear
+ * 1 - rolloff (d - ref)/(max - ref), exponent (d/ref)^-rolloff. */
+typedef enum wdrt_distance {
+    WDRT_DISTANCE_NONE,
+    WDRT_DISTANCE_INVERSE,
+    WDRT_DISTANCE_LINEAR,
+    WDRT_DISTANCE_EXPONENT,
+} wdrt_distance;
+
+/* A partition: a vertical wall from (x, y) to (x, y), m, of any height;
+ * what crosses it loses loss_db and is muffled. */
+typedef struct wdrt_wall {
+    double from[2], to[2];
+    double loss_db;
+} wdrt_wall;
+
+/* The spatial layer.  Placed voices (wdrt_pool_config.placed) are heard
+ * through it: each feeds a delay line that the listener reads at the
+ * retarded time (so arrival times and Doppler follow from the motion),
+ * with the distance gain, air absorption, occlusion by walls and
+ * constant-power panning by direction.  Voices not placed are mixed as
+ * they sound. */
+typedef struct wdrt_space_config {
+    int sources;          /* placed voices heard at once (delay lines); 0: none */
+    double c;             /* speed of sound, m/s; default 343 */
+    wdrt_distance distance;
+    double ref, max, rolloff; /* m, m, factor: defaults 1, 1000, 1 */
+    double max_delay;     /* s a delay line holds; default max/c, at most 3 */
+    int air;              /* 1: air absorption (ISO 9613-1, 20 °C, 50 %) */
+    double listener[3];   /* m: where the listener starts */
+    double facing[3];     /* the direction it faces (z is up); default +y */
+    int nwalls;
+    const wdrt_wall *walls; /* copied at init */
+} wdrt_space_config;
+
 /* One pool of instances of a voice class. */
 typedef struct wdrt_pool_config {
     const wdv_class *cls;
@@ -112,6 +150,8 @@ typedef struct wdrt_pool_config {
      * for compiled voices. */
     void (*bind)(void *state, const void *data);
     const void *data;
+    int placed;           /* 1: heard through the spatial layer */
+    double pos[3];        /* m: where its voices start */
 } wdrt_pool_config;
 
 /* Defaults for a pool of `voices` instances of cls, played as notes.
@@ -129,6 +169,7 @@ typedef struct wdrt_engine_config {
     int sleep;        /* 1: quiet voices sleep (default); 0: never */
     int npools;
     const wdrt_pool_config *pools;
+    wdrt_space_config space;
 } wdrt_engine_config;
 
 /* Defaults: 64-frame blocks, queues of 4096, no budget, sleep on.
@@ -203,6 +244,15 @@ wdrt_result wdrt_engine_play(wdrt_engine *e, uint64_t frame, int pool,
  * init left it in and sleeps. */
 wdrt_result wdrt_engine_stop(wdrt_engine *e, uint64_t frame, wdrt_voice v);
 
+/* Moves a placed voice (or every voice of a pool) to pos (m): it gets
+ * there one block after `frame`, in a straight line, sample by sample; an
+ * application that moves its objects once per block gets their paths
+ * interpolated per sample. */
+wdrt_result wdrt_engine_move(wdrt_engine *e, uint64_t frame, wdrt_voice v, const double pos[3]);
+/* Moves the listener the same way, and turns it to face `facing` (NULL:
+ * as it was). */
+wdrt_result wdrt_engine_listen(wdrt_engine *e, uint64_t frame, const double pos[3], const double facing[3]);
+
 /* Feeds input `k` of standing voice v from `samples` during the next
  * process call only: it must hold that call's nframes samples; bind again
  * before each call (unbound inputs are silent).  A voice whose input is
@@ -225,6 +275,8 @@ typedef struct wdrt_engine_stats {
     uint64_t dropped;    /* events to notes that had ended */
     uint64_t sleeps, wakes, steals, virtualized, revived;
     uint64_t cuts;       /* voices stolen with no spare to fade on */
+    int sources;         /* delay lines in use (placed voices and sound in flight) */
+    uint64_t unplaced;   /* placed voices that found no free delay line */
 } wdrt_engine_stats;
 
 /* Counters since init.  Call from the thread that processes, or when it

@@ -119,7 +119,11 @@ static wdrt_engine *make_engine(void) {
     pc[1] = wdrt_pool_config_init(g_v.cls, 16);
     pc[1].cost_ns = 1;
     pc[1].gain = 0.5;
+    pc[1].placed = 1; /* the notes are heard through the spatial layer */
+    pc[1].pos[1] = 3;
     wdrt_engine_config ec = wdrt_engine_config_init(FS, 2, 2, pc);
+    ec.space.sources = 8;
+    ec.space.max = 100;
     ec.queue = 1024;
     ec.pending = 1024;
     wdrt_engine *e;
@@ -141,7 +145,16 @@ static uint64_t post(wdrt_engine *e, int i, int spin) {
         case 1: r = wdrt_engine_strike(e, f, owned, 2, g_ids, v); break;
         case 2: r = wdrt_engine_play(e, f, 1, 1.0, 0, &last); break;
         case 3: r = wdrt_engine_strike(e, f, last, 2, g_ids, v); break;
-        default: r = i % 10 == 4 ? wdrt_engine_stop(e, f, last) : wdrt_engine_gain(e, f, owned, 0.5 + (i % 3)); break;
+        default:
+            if (i % 10 == 4)
+                r = wdrt_engine_stop(e, f, last);
+            else if (i % 20 == 9)
+                r = wdrt_engine_move(e, f, last, (double[3]){(i % 7) - 3.0, 2.0 + (i % 5), 0});
+            else if (i % 20 == 19)
+                r = wdrt_engine_listen(e, f, (double[3]){0, (i % 3) - 1.0, 0}, NULL);
+            else
+                r = wdrt_engine_gain(e, f, owned, 0.5 + (i % 3));
+            break;
         }
         if (r == WDRT_QUEUE_FULL && spin)
             sched_yield();

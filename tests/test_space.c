@@ -1,0 +1,369 @@
+/*
+ * test_space.c - the spatial layer against the physics: the arrival time
+ * of a sound at distance d, the Doppler shift of a passing source against
+ * the retarded-time formula, the distance models, air absorption against
+ * ISO 9613-1, constant power across the pan, walls that muffle, and the
+ * four-point Lagrange reader's error.
+ */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "space.h"
+#include "testlib.h"
+
+#define FS 48000.0
+
+static tl_voice g_msd; /* a driven mass on a spring: an input f, an output vel */
+
+static int setup(void **s) {
+    (void)s;
+    return tl_voice_build("netlists/msd.wdn", 0, &g_msd);
+}
+
+static int teardown(void **s) {
+    (void)s;
+    tl_voice_free(&g_msd);
+    return 0;
+}
+
+typedef struct scene {
+    wdrt_space_config sp;
+    double src[3];
+    int channels;
+    const double *in; /* the voice's input */
+    long n;
+    /* a constant velocity from src (m/s), applied by moves every block */
+    double vel[3];
+} scene;
+
+static scene base(const double *in, long n) {
+    scene sc;
+    memset(&sc, 0, sizeof sc);
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 0, NULL);
+    sc.sp = ec.space;
+    sc.sp.sources = 4;
+    sc.sp.distance = WDRT_DISTANCE_NONE;
+    sc.sp.air = 0;
+    sc.channels = 1;
+    sc.in = in;
+    sc.n = n;
+    return sc;
+}
+
+/* Renders a standing msd voice placed at sc->src (moving at sc->vel) and
+ * heard by the listener of sc->sp. */
+static double *render(const scene *sc) {
+    wdrt_pool_config pc = wdrt_pool_config_init(g_msd.cls, 1);
+    pc.owned = 1;
+    pc.cost_ns = 1;
+    pc.placed = 1;
+    pc.hold = 1000; /* never sleeps: the tests measure steady tones */
+    memcpy(pc.pos, sc->src, sizeof pc.pos);
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, sc->channels, 1, &pc);
+    ec.space = sc->sp;
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    wdrt_voice v = wdrt_engine_voice(e, 0, 0);
+    double *y = calloc((size_t)sc->n * (size_t)sc->channels + 1, sizeof(double));
+    const long B = 64;
+    for (long pos = 0; pos < sc->n; pos += B) {
+        if (sc->vel[0] != 0 || sc->vel[1] != 0 || sc->vel[2] != 0) {
+            double t = (double)(pos + B) / FS, p[3];
+            for (int j = 0; j < 3; j++)
+                p[j] = sc->src[j] + sc->vel[j] * t;
+            assert_int_equal(wdrt_engine_move(e, (uint64_t)pos, v, p), WDRT_OK);
+        }
+        long k = sc->n - pos < B ? sc->n - pos : B;
+        assert_int_equal(wdrt_engine_bind_input(e, v, 0, sc->in + pos), WDRT_OK);
+        wdrt_engine_process(e, y + pos * sc->channels, (uint32_t)k);
+    }
+    wdrt_engine_uninit(e, NULL);
+    return y;
+}
+
+/* The voice alone: what a source sounds like where it is. */
+static double *direct(const double *in, long n) {
+    void *st = tl_state_new(g_msd.cls, FS);
+    double **o = tl_bufs_new(g_msd.cls->n_outputs, n);
+    const double *ip[1] = {in};
+    wdrt_render(g_msd.cls, st, ip, o, n, 64);
+    double *y = malloc(sizeof(double) * (size_t)n);
+    memcpy(y, o[0], sizeof(double) * (size_t)n);
+    tl_bufs_free(o, g_msd.cls->n_outputs);
+    tl_state_free(st);
+    return y;
+}
+
+static double *sine(double f, long n) {
+    double *x = malloc(sizeof(double) * (size_t)n);
+    for (long i = 0; i < n; i++)
+        x[i] = sin(2 * M_PI * f * i / FS);
+    return x;
+}
+
+/* Amplitude and phase of x at f over [a, b), by correlation. */
+static void tone(const double *x, long a, long b, double f, double *amp, double *ph) {
+    double c = 0, s = 0;
+    for (long i = a; i < b; i++) {
+        c += x[i] * cos(2 * M_PI * f * i / FS);
+        s += x[i] * sin(2 * M_PI * f * i / FS);
+    }
+    *amp = 2 * hypot(c, s) / (double)(b - a);
+    *ph = atan2(s, c);
+}
+
+/* A source d metres away is heard d/c late (a steady tone's phase, to
+ * 0.01 sample) and, with no distance model and no air, unchanged. */
+static void test_arrival(void **s) {
+    (void)s;
+    const long n = 96000;
+    const double f = 250;
+    double *in = sine(f, n), *y0 = direct(in, n);
+    const double dists[] = {1, 17.3, 100, 343};
+    for (int i = 0; i < 4; i++) {
+        scene sc = base(in, n);
+        sc.src[1] = dists[i];
+        double *y = render(&sc);
+        /* the tone's phase over the last second, against the voice's over
+         * the same stretch of its own time, whole samples taken off */
+        double want = dists[i] / 343 * FS, a0, p0, a1, p1;
+        long D = lround(want);
+        tone(y0, 48000 - D, 96000 - D, f, &a0, &p0);
+        tone(y, 48000, 96000, f, &a1, &p1);
+        /* the phase gives the delay modulo a period of the tone */
+        double lag = want + remainder((p1 - p0) / (2 * M_PI * f) * FS - want, FS / f);
+        print_message("arrival at %5.1f m: delay %.5f samples, d/c %.5f samples: error %+.5f; gain %.7f\n", dists[i],
+                      lag, want, lag - want, a1 / a0);
+        assert_true(fabs(lag - want) < 0.01);
+        assert_true(fabs(a1 / a0 - 1) < 1e-5);
+        /* nothing arrives before d/c */
+        long first = 0;
+        while (first < n && y[first] == 0)
+            first++;
+        assert_true(first >= (long)floor(want) - 2);
+        free(y);
+    }
+    free(in);
+    free(y0);
+}
+
+/* A source passing at 30 m/s, 10 m off the listener's path: the frequency
+ * heard follows f / (1 + v_r / c) at the retarded time, v_r the radial
+ * velocity when the sound left. */
+static void test_doppler(void **s) {
+    (void)s;
+    const long n = (long)(3 * FS);
+    const double f = 440, v = 30, c = 343;
+    double *in = sine(f, n);
+    scene sc = base(in, n);
+    sc.src[0] = -45;
+    sc.src[1] = 10;
+    sc.vel[0] = v;
+    double *y = render(&sc);
+    /* zero crossings, upward, interpolated */
+    double worst = 0;
+    int checked = 0;
+    double last = -1;
+    int count = 0;
+    double t_start = 0;
+    for (long i = (long)(0.5 * FS); i < n - 1; i++) {
+        if (y[i] < 0 && y[i + 1] >= 0) {
+            double t = (i + y[i] / (y[i] - y[i + 1])) / FS;
+            if (last < 0) {
+                t_start = t;
+                count = 0;
+            }
+            last = t;
+            if (++count == 21) { /* 20 periods */
+                double fm = 20 / (t - t_start), tm = (t + t_start) / 2;
+                /* retarded time: the source at x(te) = -45 + v te, c (tm - te) = |p(te)| */
+                double te = tm;
+                for (int it = 0; it < 50; it++) {
+                    double x = -45 + v * te;
+                    te = tm - hypot(x, 10) / c;
+                }
+                double x = -45 + v * te, vr = v * x / hypot(x, 10);
+                double fw = f / (1 + vr / c);
+                double err = fabs(fm / fw - 1);
+                worst = fmax(worst, err);
+                checked++;
+                t_start = t;
+                count = 1;
+            }
+        }
+    }
+    print_message("doppler: %d windows of 20 periods, from %.1f Hz to %.1f Hz; worst error %.4f %%\n", checked,
+                  f / (1 - v / c), f / (1 + v / c), 100 * worst);
+    assert_true(checked > 50);
+    assert_true(worst < 1e-3);
+    free(y);
+    free(in);
+}
+
+/* Each distance model against its formula, clamped at ref and max. */
+/* The amplitude at f of what arrives over [a, b) against the voice's own
+ * over the same stretch of its time (the delay taken off), so that both
+ * see the same part of its start-up. */
+static double arriving_gain(const double *y, const double *y0, long a, long b, double f, double delay) {
+    long D = lround(delay);
+    double a1, a0, ph;
+    tone(y, a, b, f, &a1, &ph);
+    tone(y0, a - D, b - D, f, &a0, &ph);
+    return a1 / a0;
+}
+
+static void test_distance_models(void **s) {
+    (void)s;
+    const long n = 96000;
+    double *in = sine(250, n), *y0 = direct(in, n);
+    const wdrt_distance models[] = {WDRT_DISTANCE_INVERSE, WDRT_DISTANCE_LINEAR, WDRT_DISTANCE_EXPONENT};
+    const double dists[] = {0.5, 2, 10, 40, 120};
+    for (int m = 0; m < 3; m++)
+        for (int i = 0; i < 5; i++) {
+            scene sc = base(in, n);
+            sc.sp.distance = models[m];
+            sc.sp.ref = 1;
+            sc.sp.max = 100;
+            sc.sp.rolloff = 0.8;
+            sc.src[0] = dists[i];
+            double *y = render(&sc);
+            double d = fmin(fmax(dists[i], 1), 100), want;
+            double g = arriving_gain(y, y0, 48000, 96000, 250, dists[i] / 343 * FS);
+            if (models[m] == WDRT_DISTANCE_INVERSE)
+                want = 1 / (1 + 0.8 * (d - 1));
+            else if (models[m] == WDRT_DISTANCE_LINEAR)
+                want = 1 - 0.8 * (d - 1) / 99;
+            else
+                want = pow(d, -0.8);
+            if (fabs(g - want) > 1e-4 * want + 1e-9)
+                fail_msg("model %d at %g m: gain %.6f, formula %.6f", m, dists[i], g, want);
+            free(y);
+        }
+    free(in);
+    free(y0);
+}
+
+/* Air absorption over 100 m against ISO 9613-1 at 1, 4 and 8 kHz. */
+static void test_air(void **s) {
+    (void)s;
+    const long n = 48000;
+    const double fr[] = {1000, 4000, 8000}, iso[] = {0.47, 2.97, 10.5}; /* dB over 100 m, ISO 9613-1 tables */
+    for (int i = 0; i < 3; i++) {
+        assert_true(fabs(space_air_alpha(fr[i]) * 100 - iso[i]) < 0.05 * iso[i] + 0.02);
+        double *in = sine(fr[i], n), *y0 = direct(in, n);
+        scene sc = base(in, n);
+        sc.sp.air = 1;
+        sc.src[1] = 100;
+        double *y = render(&sc);
+        double db = -20 * log10(arriving_gain(y, y0, 24000, 48000, fr[i], 100 / 343.0 * FS));
+        double want = space_air_alpha(fr[i]) * 100;
+        print_message("air, 100 m, %5.0f Hz: %.2f dB, ISO 9613-1 %.2f dB\n", fr[i], db, want);
+        assert_true(fabs(db - want) < 1.0);
+        free(y);
+        free(in);
+        free(y0);
+    }
+}
+
+/* Stereo: a source on a circle around the listener keeps its power, and
+ * one on the right is louder on the right. */
+static void test_pan(void **s) {
+    (void)s;
+    const long n = 12000;
+    double *in = sine(250, n);
+    double pw0 = -1;
+    for (int k = 0; k < 8; k++) {
+        scene sc = base(in, n);
+        sc.channels = 2;
+        double th = 2 * M_PI * k / 8;
+        sc.src[0] = 5 * cos(th);
+        sc.src[1] = 5 * sin(th);
+        double *y = render(&sc);
+        double l = 0, r = 0;
+        for (long i = 6000; i < n; i++)
+            l += y[2 * i] * y[2 * i], r += y[2 * i + 1] * y[2 * i + 1];
+        if (pw0 < 0)
+            pw0 = l + r;
+        assert_true(fabs((l + r) / pw0 - 1) < 1e-3);
+        if (k == 0)
+            assert_true(r > 10 * l); /* +x is to the right of a listener facing +y */
+        if (k == 4)
+            assert_true(l > 10 * r);
+        free(y);
+    }
+    free(in);
+}
+
+/* A wall between source and listener takes its loss off the low
+ * frequencies and more off the high ones; beside the path it does nothing. */
+static void test_wall(void **s) {
+    (void)s;
+    const long n = 24000;
+    wdrt_wall w = {{-5, 5}, {5, 5}, 12};
+    const double fr[] = {100, 4000};
+    double g[2][2];
+    for (int i = 0; i < 2; i++)
+        for (int blocked = 0; blocked < 2; blocked++) {
+            double *in = sine(fr[i], n);
+            scene sc = base(in, n);
+            sc.sp.nwalls = 1;
+            sc.sp.walls = &w;
+            sc.src[0] = blocked ? 0 : 20;
+            sc.src[1] = 10;
+            double *y = render(&sc);
+            double a, ph;
+            tone(y, 12000, 24000, fr[i], &a, &ph);
+            g[i][blocked] = a;
+            free(y);
+            free(in);
+        }
+    double lo = 20 * log10(g[0][1] / g[0][0]), hi = 20 * log10(g[1][1] / g[1][0]);
+    /* the unblocked source is farther off but no model is on: same level */
+    print_message("wall of 12 dB: %.1f dB at 100 Hz, %.1f dB at 4 kHz\n", lo, hi);
+    assert_true(fabs(lo + 12) < 0.5);
+    assert_true(hi < lo - 6);
+}
+
+/* The four-point Lagrange reader: exact at whole samples, and its error
+ * for a tone read halfway between samples (the worst place). */
+static void test_lagrange(void **s) {
+    (void)s;
+    double buf[1024];
+    for (int i = 0; i < 1024; i++)
+        buf[i] = sin(0.3 * i) + 0.1 * i;
+    for (int i = 4; i < 1000; i++)
+        assert_true(space_read(buf, 1023, (double)i) == buf[i]);
+    /* halfway, the weights are (-1, 9, 9, -1)/16: a tone comes out scaled
+     * by 9/8 cos(w/2) - 1/8 cos(3w/2), in phase */
+    const double fr[] = {1000, 5000, 10000, 16000};
+    for (int k = 0; k < 4; k++) {
+        double w = 2 * M_PI * fr[k] / FS, dev = 0, err = 0;
+        double want = 9.0 / 8 * cos(w / 2) - 1.0 / 8 * cos(1.5 * w);
+        for (int i = 0; i < 1024; i++)
+            buf[i] = sin(w * i);
+        for (int i = 10; i < 1000; i++) {
+            double r = space_read(buf, 1023, i + 0.5), x = sin(w * (i + 0.5));
+            dev = fmax(dev, fabs(r - want * x));
+            err = fmax(err, fabs(r - x));
+        }
+        print_message("Lagrange, halfway between samples, %5.0f Hz at 48 kHz: error %.1f dB (closed form %.1f dB)\n",
+                      fr[k], tl_db(err), tl_db(1 - want));
+        assert_true(dev < 1e-12);
+    }
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_arrival), cmocka_unit_test(test_doppler), cmocka_unit_test(test_distance_models),
+        cmocka_unit_test(test_air),     cmocka_unit_test(test_pan),     cmocka_unit_test(test_wall),
+        cmocka_unit_test(test_lagrange),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
