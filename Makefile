@@ -7,7 +7,7 @@
 CC      ?= cc
 CFLAGS  ?= -O2 -g
 CFLAGS  += -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -Wall -Wextra -pedantic -MMD -MP
-LDLIBS  = -llapacke -lsndfile -ldl -lm
+LDLIBS  = -llapacke -lsndfile -lmysofa -ldl -lm
 
 GEN_SRCS   = $(filter-out gen/main.c,$(wildcard gen/*.c))
 RT_SRCS    = $(filter-out runtime/wdrt_main.c,$(wildcard runtime/*.c))
@@ -88,7 +88,7 @@ run-tests: all build/examples/embed $(TEST_BINS) $(TSAN_BINS) $(ASAN_BINS)
 build/tests/%_asan: tests/%.c $(RT_SRCS) runtime/wdrt.h runtime/sexp.h $(TLIB_OBJS) build/libwdc.a
 	@mkdir -p $(dir $@)
 	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=address,undefined -fno-sanitize-recover=undefined \
-		-fno-omit-frame-pointer -Iruntime -Igen -o $@ $< $(RT_SRCS) $(TLIB_OBJS) build/libwdc.a -lcmocka $(LDLIBS) -lpthread
+		-fno-omit-frame-pointer -iquote runtime -iquote gen -o $@ $< $(RT_SRCS) $(TLIB_OBJS) build/libwdc.a -lcmocka $(LDLIBS) -lpthread
 
 # examples/embed: an application that compiles a generated voice in, as
 # an application would (no compiler, no dlopen at run time).
@@ -96,14 +96,14 @@ build/examples/piano_key/piano_key.c: scenes/piano_key.wdn blocks/piano.wdn bin/
 	bin/wdc scenes/piano_key.wdn -o build/examples/piano_key
 
 build/examples/embed: examples/embed.c examples/score.h build/examples/piano_key/piano_key.c build/libwdrt.a
-	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -Iruntime -Ibuild/examples/piano_key -o $@ examples/embed.c \
-		build/examples/piano_key/piano_key.c build/libwdrt.a -lsndfile -lm
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -iquote runtime -iquote build/examples/piano_key -o $@ examples/embed.c \
+		build/examples/piano_key/piano_key.c build/libwdrt.a -lsndfile -lmysofa -lm
 
 # The event storm again under ThreadSanitizer: the engine and the test
 # built with -fsanitize=thread (the counting allocator steps aside).
 build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	@mkdir -p $(dir $@)
-	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -Iruntime -Igen -o $@ tests/test_storm.c runtime/engine.c \
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -iquote runtime -iquote gen -o $@ tests/test_storm.c runtime/engine.c \
 		$(TLIB_OBJS) build/libwdc.a build/libwdrt.a -lcmocka $(LDLIBS) -lpthread
 
 bench: deps

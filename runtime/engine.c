@@ -23,6 +23,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "hrtf.h"
+#include "room.h"
 #include "space.h"
 
 #define MAX_BLOCK 4096
@@ -35,6 +37,8 @@
 enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP, EV_MOVE, EV_LISTEN };
 #define AIR_TABLE 256 /* distances the air filter is tabulated at */
 #define LISTEN_MAX 16 /* listener moves one block takes in order */
+#define IMAGE_ORDER 3 /* the highest image order the engine renders */
+#define MAX_IMAGES 62 /* images up to IMAGE_ORDER */
 enum { M_FREE, M_AWAKE, M_ASLEEP, M_VIRTUAL };
 enum { A_NONE, A_SLEEP, A_FREE, A_VIRTUAL, A_RESET };
 
@@ -115,7 +119,28 @@ typedef struct slot {
     double occ_gain;      /* and its loss */
     double lp;            /* state of the muffling low-pass */
     double air[SPACE_AIR_POLES];
+    hrtf_src *ear;        /* binaural: its filters and history */
+    struct tap *taps;     /* its image sources (MAX_IMAGES) */
+    int ntaps;            /* in use in the last block */
+    double tail;          /* s: the longest of their delays */
+    int room;             /* the room it was in, or -1 */
 } slot;
+
+/* One image source of a slot: a tap read at its own delay, through its
+ * walls' filter, with its distance gain and direction. */
+typedef struct tap {
+    double delay, gain, gl, gr; /* s, and gains, at the last block's end */
+    double b0, b1, a1, x1, y1;  /* the wall filter and its state */
+} tap;
+
+/* A room of the scene: its geometry and its reverb. */
+typedef struct room {
+    room_config cfg;
+    room_fdn *fdn;
+    double *in;           /* what the sources in it sounded this block */
+    double heard, heard_to; /* its reverb's gain at the listener */
+    int fed;              /* some source fed it this block */
+} room;
 
 typedef struct pool {
     wdrt_pool_config cfg;
@@ -157,6 +182,11 @@ struct wdrt_engine {
     int nlmoves;
     double *lpos;          /* the listener's position at each frame of the block */
     double *sig;           /* a slot's arriving signal in the block */
+    const hrtf *ears;      /* binaural output, or NULL */
+    room *rooms;
+    int nrooms;
+    double *rout;          /* a room's reverb in the block, left then right */
+    double *earbuf;        /* left and right ear of the block */
     double air_p[AIR_TABLE];
     int air_n[AIR_TABLE];
     double *mix;           /* B * nch */
@@ -175,7 +205,9 @@ struct wdrt_engine {
 /* ---- memory layout ---- */
 
 typedef struct layout {
-    size_t slots, dbufs, hists, walls, lpos, sig;
+    size_t slots, dbufs, hists, walls, lpos, sig, ears, earbuf, hsize, taps, rooms, fdns, rin, rout;
+    size_t fdnsize[64];
+    int ntaps;             /* images per slot: 0 when no room reflects */
     uint64_t dlen, hlen;
     size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, mix,
         obuf, zero, optr, iptr, total;
@@ -192,6 +224,17 @@ static uint32_t pow2(int n) {
 }
 
 static int pool_spares(const wdrt_pool_config *p) { return p->owned ? 0 : p->spares; }
+
+static room_config room_cfg(const wdrt_room *r, const wdrt_engine_config *c) {
+    room_config rc;
+    memcpy(rc.box, r->box, sizeof rc.box);
+    rc.t60_low = r->t60_low;
+    rc.t60_high = r->t60_high;
+    rc.order = r->order;
+    rc.c = c->space.c;
+    rc.fs = c->rate;
+    return rc;
+}
 
 /* One place computes where everything lives, for get_size and init. */
 static void get_layout(const wdrt_engine_config *c, layout *L) {
@@ -244,6 +287,25 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(walls, sizeof(wdrt_wall) * (size_t)c->space.nwalls, 16);
     PLACE(lpos, sizeof(double) * 3 * (size_t)c->block, 16);
     PLACE(sig, sizeof(double) * (size_t)c->block, 16);
+    const hrtf *h = (const hrtf *)c->space.hrtf;
+    L->hsize = h && ns > 0 ? up(hrtf_src_size(h), 64) : 0;
+    PLACE(ears, L->hsize * (size_t)ns, 64);
+    PLACE(earbuf, sizeof(double) * 2 * (size_t)c->block, 16);
+    int nr = c->space.nrooms, order = 0;
+    for (int i = 0; i < nr; i++)
+        order = c->space.rooms[i].order > order ? c->space.rooms[i].order : order;
+    L->ntaps = order > 0 ? MAX_IMAGES : 0;
+    PLACE(taps, sizeof(tap) * (size_t)L->ntaps * (size_t)ns, 16);
+    PLACE(rooms, sizeof(room) * (size_t)nr, 16);
+    size_t fdns = 0;
+    for (int i = 0; i < nr; i++) {
+        room_config rc = room_cfg(&c->space.rooms[i], c);
+        L->fdnsize[i] = up(room_fdn_size(&rc), 64);
+        fdns += L->fdnsize[i];
+    }
+    PLACE(fdns, fdns, 64);
+    PLACE(rin, sizeof(double) * (size_t)c->block * (size_t)nr, 16);
+    PLACE(rout, sizeof(double) * 2 * (size_t)c->block, 16);
 #undef PLACE
     L->total = o;
 }
@@ -297,8 +359,15 @@ static wdrt_result check_config(const wdrt_engine_config *c) {
           sp->distance < WDRT_DISTANCE_NONE || sp->distance > WDRT_DISTANCE_EXPONENT || sp->nwalls < 0 ||
           sp->nwalls > 4096 || (sp->nwalls && !sp->walls) ||
           !isfinite(sp->listener[0] + sp->listener[1] + sp->listener[2]) ||
-          !(fabs(sp->facing[0]) + fabs(sp->facing[1]) > 0))))
+          !(fabs(sp->facing[0]) + fabs(sp->facing[1]) > 0) || (sp->hrtf && c->channels != 2) || sp->nrooms < 0 ||
+          sp->nrooms > 64 || (sp->nrooms && !sp->rooms))))
         return WDRT_INVALID_ARGS;
+    for (int i = 0; sp->sources > 0 && i < sp->nrooms; i++) {
+        const wdrt_room *r = &sp->rooms[i];
+        room_config rc = room_cfg(r, c);
+        if (r->order < 0 || r->order > IMAGE_ORDER || room_fdn_size(&rc) == 0)
+            return WDRT_INVALID_ARGS;
+    }
     for (int i = 0; i < c->npools; i++) {
         const wdrt_pool_config *p = &c->pools[i];
         if (p->placed && (sp->sources <= 0 || !isfinite(p->pos[0] + p->pos[1] + p->pos[2])))
@@ -465,6 +534,26 @@ static void init_space(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
     e->sp.walls = w;
     e->lpos = (double *)(m + L->lpos);
     e->sig = (double *)(m + L->sig);
+    e->ears = (const hrtf *)c->space.hrtf;
+    e->earbuf = (double *)(m + L->earbuf);
+    for (int i = 0; e->ears && i < e->nslots; i++)
+        e->slots[i].ear = hrtf_src_init(e->ears, m + L->ears + L->hsize * (size_t)i);
+    for (int i = 0; i < e->nslots; i++) {
+        e->slots[i].taps = L->ntaps ? (tap *)(m + L->taps) + MAX_IMAGES * (size_t)i : NULL;
+        e->slots[i].room = -1;
+    }
+    e->nrooms = c->space.sources > 0 ? c->space.nrooms : 0;
+    e->rooms = (room *)(m + L->rooms);
+    e->rout = (double *)(m + L->rout);
+    unsigned char *fm = m + L->fdns;
+    for (int i = 0; i < e->nrooms; i++) {
+        room *r = &e->rooms[i];
+        r->cfg = room_cfg(&c->space.rooms[i], c);
+        r->fdn = room_fdn_init(&r->cfg, fm);
+        fm += L->fdnsize[i];
+        r->in = (double *)(m + L->rin) + (size_t)c->block * (size_t)i;
+        r->heard = r->heard_to = room_contains(&r->cfg, c->space.listener) ? 1 : 0;
+    }
     double f = hypot(c->space.facing[0], c->space.facing[1]);
     for (int k = 0; k < 3; k++) {
         e->lis[k] = e->lpath[k].v = e->lpath[k].to = c->space.listener[k];
@@ -569,6 +658,12 @@ void wdrt_engine_uninit(wdrt_engine *e, const wdrt_alloc_callbacks *alloc) {
 }
 
 /* ---- the producer's side ---- */
+
+wdrt_hrtf *wdrt_hrtf_open(const char *sofa, double fs, char *err, size_t errlen) {
+    return (wdrt_hrtf *)hrtf_open(sofa, fs, err, errlen);
+}
+
+void wdrt_hrtf_close(wdrt_hrtf *h) { hrtf_close((hrtf *)h); }
 
 uint64_t wdrt_engine_time(const wdrt_engine *e) { return e ? __atomic_load_n(&e->time, __ATOMIC_ACQUIRE) : 0; }
 
@@ -1353,6 +1448,11 @@ static void slot_attach(wdrt_engine *e, int k, uint64_t now) {
     q->occ_gain = 1;
     q->lp = 0;
     memset(q->air, 0, sizeof q->air);
+    if (q->ear)
+        hrtf_src_clear(q->ear);
+    q->ntaps = -1;
+    q->tail = 0;
+    q->room = -1;
     v->slot = i;
 }
 
@@ -1463,6 +1563,98 @@ static void air_poles(const wdrt_engine *e, double d, double *p) {
     }
 }
 
+/* Binaural: the block's arriving signal in e->sig through the HRTF for
+ * its direction in the listener's frame (x right, y ahead, z up). */
+static void hear(wdrt_engine *e, slot *q, const double *L, const double *p, int nb) {
+    double u[3] = {p[0] - L[0], p[1] - L[1], p[2] - L[2]};
+    double dir[3] = {u[0] * e->face[1] - u[1] * e->face[0], u[0] * e->face[0] + u[1] * e->face[1], u[2]};
+    double *l = e->earbuf, *r = e->earbuf + e->B;
+    memset(e->earbuf, 0, sizeof(double) * 2 * (size_t)e->B);
+    hrtf_src_process(e->ears, q->ear, dir, e->sig, l, r, nb);
+    for (int n = 0; n < nb; n++)
+        e->mix[2 * n] += l[n], e->mix[2 * n + 1] += r[n];
+}
+
+/* The room a point is in, or -1. */
+static int room_of(const wdrt_engine *e, const double *p) {
+    for (int i = 0; i < e->nrooms; i++)
+        if (room_contains(&e->rooms[i].cfg, p))
+            return i;
+    return -1;
+}
+
+/* The images of q's source in its room, heard by a listener in the same
+ * room: each a tap on the delay line at its own delay (from where the
+ * source is now; the retarded time of the direct path is not solved for
+ * them), through its walls' filter, with its distance gain and panned by
+ * its direction (binaural output too). */
+static void images(wdrt_engine *e, slot *q, const room *r, uint64_t t0, int nb, const double *L, const double *p) {
+    room_image img[MAX_IMAGES];
+    if (!q->taps || r->cfg.order == 0) {
+        q->ntaps = 0;
+        return;
+    }
+    int n = room_images(&r->cfg, p, img, MAX_IMAGES);
+    if (n < 0)
+        n = 0;
+    if (n != q->ntaps)
+        memset(q->taps, 0, sizeof(tap) * MAX_IMAGES);
+    q->tail = 0;
+    for (int i = 0; i < n; i++) {
+        tap *k = &q->taps[i];
+        double d = dist3(img[i].pos, L);
+        double delay = d / e->sp.c, gain = space_distance_gain(e->sp.distance, d, e->sp.ref, e->sp.max, e->sp.rolloff);
+        double gl = 1, gr = 0;
+        if (e->nch == 2)
+            pan_gains(e, L, img[i].pos, &gl, &gr);
+        if (i >= q->ntaps || k->delay == 0) /* a new tap starts where it is */
+            k->delay = delay, k->gain = gain, k->gl = gl, k->gr = gr;
+        room_wall_filter_coefs(img[i].gain, img[i].hf, e->fs, &k->b0, &k->b1, &k->a1);
+        double dd = (delay - k->delay) / nb, dg = (gain - k->gain) / nb, dl = (gl - k->gl) / nb,
+               dr = (gr - k->gr) / nb;
+        for (int j = 0; j < nb; j++) {
+            double te = (double)(t0 + (uint64_t)j) - (k->delay + dd * j) * e->fs;
+            double x = te < (double)q->start - 2 ? 0 : space_read(q->buf, e->dmask, te);
+            double y = k->b0 * x + k->b1 * k->x1 - k->a1 * k->y1;
+            k->x1 = x, k->y1 = y;
+            y *= k->gain + dg * j;
+            if (e->nch == 1)
+                e->mix[j] += y;
+            else
+                e->mix[2 * j] += (k->gl + dl * j) * y, e->mix[2 * j + 1] += (k->gr + dr * j) * y;
+        }
+        k->delay = delay, k->gain = gain, k->gl = gl, k->gr = gr;
+        q->tail = delay > q->tail ? delay : q->tail;
+    }
+    q->ntaps = n;
+}
+
+/* The reverb of every room, fed by the sources in it this block and heard
+ * fully inside it, and outside through the walls between the listener
+ * and its centre. */
+static void reverb(wdrt_engine *e, int nb) {
+    for (int i = 0; i < e->nrooms; i++) {
+        room *r = &e->rooms[i];
+        const double *b = r->cfg.box;
+        double c[3] = {(b[0] + b[3]) / 2, (b[1] + b[4]) / 2, (b[2] + b[5]) / 2};
+        r->heard_to = room_contains(&r->cfg, e->lis) ? 1 : pow(10, -wall_loss(e, e->lis, c) / 20);
+        if (!r->fed)
+            memset(r->in, 0, sizeof(double) * (size_t)nb);
+        double *l = e->rout, *rr = e->rout + e->B;
+        memset(e->rout, 0, sizeof(double) * 2 * (size_t)e->B);
+        room_fdn_process(r->fdn, r->in, l, rr, nb);
+        double h = r->heard, dh = (r->heard_to - r->heard) / nb;
+        for (int n = 0; n < nb; n++, h += dh) {
+            if (e->nch == 1)
+                e->mix[n] += h * l[n];
+            else
+                e->mix[2 * n] += h * l[n], e->mix[2 * n + 1] += h * rr[n];
+        }
+        r->heard = r->heard_to;
+        r->fed = 0;
+    }
+}
+
 /* What reaches the listener from slot q in this block, mixed in. */
 static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
     double p0[3], p1[3];
@@ -1483,6 +1675,20 @@ static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
         memcpy(p1, p0, sizeof p1);
     else
         retarded(e, q, (double)(t0 + (uint64_t)nb - 1), e->lpos + 3 * (nb - 1), tau, p1);
+    /* the room the source is in hears it as the listener does, before the
+     * way's losses: its reverb starts after the direct sound */
+    int ri = e->nrooms ? room_of(e, p1) : -1;
+    if (ri != q->room)
+        q->ntaps = -1; /* into another room: its images start anew */
+    q->room = ri;
+    if (ri >= 0) {
+        room *r = &e->rooms[ri];
+        if (!r->fed)
+            memset(r->in, 0, sizeof(double) * (size_t)nb);
+        for (int n = 0; n < nb; n++)
+            r->in[n] += e->sig[n];
+        r->fed = 1;
+    }
     q->tau = tau;
     const double *L0 = e->lpos, *L1 = e->lpos + 3 * (nb - 1);
     double d0 = e->sp.c * tau0, d1 = e->sp.c * tau;
@@ -1504,7 +1710,9 @@ static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
             nair++;
     }
     double gl0 = 1, gr0 = 0, gl1 = 1, gr1 = 0;
-    if (e->nch == 2) {
+    if (e->ears) { /* the HRTF makes the direction: the gains stay whole */
+        gl0 = gl1 = 1;
+    } else if (e->nch == 2) {
         pan_gains(e, L0, p0, &gl0, &gr0);
         pan_gains(e, L1, p1, &gl1, &gr1);
     }
@@ -1516,10 +1724,21 @@ static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
         q->occ += occ_step;
         x = (1 - q->occ) * x + q->occ * q->occ_gain * q->lp;
         x *= g0 + (g1 - g0) * w;
-        if (e->nch == 1)
+        if (e->ears)
+            e->sig[n] = x;
+        else if (e->nch == 1)
             e->mix[n] += x;
         else
             e->mix[2 * n] += (gl0 + (gl1 - gl0) * w) * x, e->mix[2 * n + 1] += (gr0 + (gr1 - gr0) * w) * x;
+    }
+    if (e->ears)
+        hear(e, q, L1, p1, nb);
+    if (ri >= 0) {
+        room *r = &e->rooms[ri];
+        if (room_contains(&r->cfg, L1))
+            images(e, q, r, t0, nb, L1, p1);
+        else
+            q->ntaps = 0;
     }
     q->occ = q->occ_to;
     for (int k = nair; k < SPACE_AIR_POLES; k++)
@@ -1528,7 +1747,7 @@ static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
     if (q->inst >= 0)
         e->inst[q->inst].sgain = g1 * (1 - q->occ_to + q->occ_to * q->occ_gain);
     /* drained: everything fed has arrived */
-    if (q->inst < 0 && (double)q->fed + 4 < (double)(t0 + (uint64_t)nb) - tau * e->fs)
+    if (q->inst < 0 && (double)q->fed + 4 < (double)(t0 + (uint64_t)nb) - (tau > q->tail ? tau : q->tail) * e->fs)
         q->busy = 0;
 }
 
@@ -1543,6 +1762,7 @@ static void space_mix(wdrt_engine *e, uint64_t t0, int nb) {
             n++;
         }
     e->s.sources = n;
+    reverb(e, nb);
 }
 
 /* ---- the audio thread: the end of a grid block ---- */

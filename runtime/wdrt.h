@@ -95,11 +95,32 @@ typedef struct wdrt_wall {
     double loss_db;
 } wdrt_wall;
 
+/* A box room: image sources up to `order` (each a tap on a source's delay
+ * line with its own delay, distance gain, wall filter and direction) for
+ * the sources in it while the listener is in it too, and a reverb (a
+ * feedback delay network) fed by the sources in it, heard fully inside
+ * and, outside, through the walls between the listener and the room. */
+typedef struct wdrt_room {
+    double box[6];        /* x0 y0 z0 x1 y1 z1, m */
+    double t60_low;       /* s at and below 500 Hz */
+    double t60_high;      /* s at and above 4 kHz */
+    int order;            /* image-source order, 0..3 */
+} wdrt_room;
+
+/* A head-related transfer function set for binaural output, loaded from
+ * a SOFA file (AES69) through libmysofa and resampled to fs (Hz); NULL
+ * sofa: Debian's MIT KEMAR set.  Shared by every source and engine that
+ * names it; close it after them.  NULL on failure with "PATH: error: why"
+ * in err.  Allocates and reads a file: not real-time safe. */
+typedef struct wdrt_hrtf wdrt_hrtf;
+wdrt_hrtf *wdrt_hrtf_open(const char *sofa, double fs, char *err, size_t errlen);
+void wdrt_hrtf_close(wdrt_hrtf *h);
+
 /* The spatial layer.  Placed voices (wdrt_pool_config.placed) are heard
  * through it: each feeds a delay line that the listener reads at the
  * retarded time (so arrival times and Doppler follow from the motion),
  * with the distance gain, air absorption, occlusion by walls and
- * constant-power panning by direction.  Voices not placed are mixed as
+ * constant-power panning by direction, or an HRTF for each ear.  Voices not placed are mixed as
  * they sound. */
 typedef struct wdrt_space_config {
     int sources;          /* placed voices heard at once (delay lines); 0: none */
@@ -112,6 +133,10 @@ typedef struct wdrt_space_config {
     double facing[3];     /* the direction it faces (z is up); default +y */
     int nwalls;
     const wdrt_wall *walls; /* copied at init */
+    const wdrt_hrtf *hrtf;  /* binaural: heard through it (stereo output, left
+                               and right ear); NULL: panned */
+    int nrooms;
+    const wdrt_room *rooms; /* copied at init */
 } wdrt_space_config;
 
 /* One pool of instances of a voice class. */

@@ -2,10 +2,12 @@
 # install-deps.sh - installs what building wdc needs, and nothing else.
 #
 # Checks for a C compiler and for the headers and libraries of libsndfile,
-# LAPACKE and cmocka, for clang (the tests compile voices with it), and for
-# what the LV2 tests use: the LV2 headers and lv2_validate (lv2-dev), lilv
-# (liblilv-dev), lv2apply (lilv-utils) and sord_validate (sordi, which
-# lv2_validate runs); installs only the missing Debian packages with
+# LAPACKE, cmocka and libmysofa (the binaural renderer's SOFA reader; the
+# libmysofa1 it pulls in ships the MIT KEMAR set, HRTF_DEFAULT_SOFA), for
+# clang (the tests compile voices with it), and for what the LV2 tests
+# use: the LV2 headers and lv2_validate (lv2-dev), lilv (liblilv-dev),
+# lv2apply (lilv-utils) and sord_validate (sordi, which lv2_validate
+# runs); installs only the missing Debian packages with
 # apt-get (after one `apt-get update`), through sudo when not root.
 # Exit status: 0 when everything is present afterwards, 1 otherwise.
 #
@@ -70,6 +72,8 @@ if have_lib lapacke.h lapacke; then say "LAPACKE: found"
 else say "LAPACKE: missing"; missing="$missing liblapacke-dev"; fi
 if have_cmocka; then say "cmocka: found"
 else say "cmocka: missing"; missing="$missing libcmocka-dev"; fi
+if have_lib mysofa.h mysofa; then say "libmysofa: found"
+else say "libmysofa: missing"; missing="$missing libmysofa-dev"; fi
 # the tests compile every emitted voice with clang as well as gcc
 if command -v clang >/dev/null 2>&1; then say "clang: found"
 else say "clang: missing"; missing="$missing clang"; fi
@@ -108,6 +112,7 @@ have_cc || still="$still compiler($CC_CMD)"
 have_lib sndfile.h sndfile || still="$still sndfile.h/-lsndfile"
 have_lib lapacke.h lapacke || still="$still lapacke.h/-llapacke"
 have_cmocka || still="$still cmocka.h/-lcmocka"
+have_lib mysofa.h mysofa || still="$still mysofa.h/-lmysofa"
 command -v clang >/dev/null 2>&1 || still="$still clang"
 have_lv2 || still="$still lv2/core/lv2.h/lv2_validate"
 have_lilv || still="$still lilv/lilv.h/-llilv-0"
