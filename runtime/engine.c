@@ -1629,15 +1629,28 @@ static void images(wdrt_engine *e, slot *q, const room *r, uint64_t t0, int nb, 
     q->ntaps = n;
 }
 
+/* How a room's reverb is heard from outside it: as from its nearest
+ * point (the scene's distance model at that distance), and through the
+ * walls between the listener and the room's centre. */
+static double outside(const wdrt_engine *e, const room *r, const double *c) {
+    const double *b = r->cfg.box;
+    double d2 = 0;
+    for (int j = 0; j < 3; j++) {
+        double x = e->lis[j] < b[j] ? b[j] - e->lis[j] : e->lis[j] > b[j + 3] ? e->lis[j] - b[j + 3] : 0;
+        d2 += x * x;
+    }
+    return space_distance_gain(e->sp.distance, sqrt(d2), e->sp.ref, e->sp.max, e->sp.rolloff) *
+           pow(10, -wall_loss(e, e->lis, c) / 20);
+}
+
 /* The reverb of every room, fed by the sources in it this block and heard
- * fully inside it, and outside through the walls between the listener
- * and its centre. */
+ * fully inside it, and from outside as outside() says. */
 static void reverb(wdrt_engine *e, int nb) {
     for (int i = 0; i < e->nrooms; i++) {
         room *r = &e->rooms[i];
         const double *b = r->cfg.box;
         double c[3] = {(b[0] + b[3]) / 2, (b[1] + b[4]) / 2, (b[2] + b[5]) / 2};
-        r->heard_to = room_contains(&r->cfg, e->lis) ? 1 : pow(10, -wall_loss(e, e->lis, c) / 20);
+        r->heard_to = room_contains(&r->cfg, e->lis) ? 1 : outside(e, r, c);
         if (!r->fed)
             memset(r->in, 0, sizeof(double) * (size_t)nb);
         double *l = e->rout, *rr = e->rout + e->B;

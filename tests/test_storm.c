@@ -3,7 +3,8 @@
  * processes: 10^5 strikes, sets, plays and stops, none lost, none late,
  * the render the same bit for bit as with every event posted up front,
  * and no allocation at all inside wdrt_engine_process (a counting
- * allocator stands in for malloc).  The Makefile also builds this file
+ * allocator stands in for malloc), with the notes heard through the
+ * spatial layer: moving, in a room with reflections, binaurally.  The Makefile also builds this file
  * with ThreadSanitizer (test_storm_tsan), which checks the queue; TSan
  * has its own malloc, so that build leaves the counting allocator out.
  */
@@ -16,6 +17,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -91,11 +93,17 @@ static void process(wdrt_engine *e, double *out, uint32_t n) {
 
 static tl_voice g_v;
 static int g_ids[2];
+static wdrt_hrtf *g_hrtf;
 
 static int setup(void **s) {
     (void)s;
     if (tl_voice_build("netlists/mallet_plate.wdn", 0, &g_v) != 0)
         return -1;
+    char err[512];
+    if (!(g_hrtf = wdrt_hrtf_open(NULL, FS, err, sizeof err))) {
+        fputs(err, stderr);
+        return -1;
+    }
     for (int i = 0; i < g_v.cls->n_ic_targets; i++) {
         if (!strcmp(g_v.cls->ic_targets[i].name, "v(m)"))
             g_ids[0] = i;
@@ -108,6 +116,7 @@ static int setup(void **s) {
 static int teardown(void **s) {
     (void)s;
     tl_voice_free(&g_v);
+    wdrt_hrtf_close(g_hrtf);
     return 0;
 }
 
@@ -124,6 +133,11 @@ static wdrt_engine *make_engine(void) {
     wdrt_engine_config ec = wdrt_engine_config_init(FS, 2, 2, pc);
     ec.space.sources = 8;
     ec.space.max = 100;
+    /* the notes sound in a room, with reflections, heard binaurally */
+    static const wdrt_room room = {{-10, -10, -2, 10, 10, 6}, 0.8, 0.5, 2};
+    ec.space.nrooms = 1;
+    ec.space.rooms = &room;
+    ec.space.hrtf = g_hrtf;
     ec.queue = 1024;
     ec.pending = 1024;
     wdrt_engine *e;
