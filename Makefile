@@ -108,11 +108,12 @@ build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h 
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
 	build/bench/rtbench
+	build/bench/spacebench
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
@@ -123,6 +124,10 @@ build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) b
 # The engine's economy: sleeping voices, a 1000-voice scene, an 88-key piano.
 build/bench/rtbench: build/bench/rtbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lpthread
+
+# The spatial layer's cost per moving source, against OpenAL Soft (libopenal-dev).
+build/bench/spacebench: build/bench/spacebench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lopenal
 
 # The plucked string against STK's Plucked (libstk-dev, through a C++ shim).
 CXX     ?= g++

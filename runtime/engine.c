@@ -131,6 +131,7 @@ typedef struct slot {
 typedef struct tap {
     double delay, gain, gl, gr; /* s, and gains, at the last block's end */
     double b0, b1, a1, x1, y1;  /* the wall filter and its state */
+    double wg, whf;             /* the reflection it was made for */
 } tap;
 
 /* A room of the scene: its geometry and its reverb. */
@@ -140,6 +141,7 @@ typedef struct room {
     double *in;           /* what the sources in it sounded this block */
     double heard, heard_to; /* its reverb's gain at the listener */
     int fed;              /* some source fed it this block */
+    int asleep;           /* unfed and rung down: not computed */
 } room;
 
 typedef struct pool {
@@ -1609,7 +1611,10 @@ static void images(wdrt_engine *e, slot *q, const room *r, uint64_t t0, int nb, 
             pan_gains(e, L, img[i].pos, &gl, &gr);
         if (i >= q->ntaps || k->delay == 0) /* a new tap starts where it is */
             k->delay = delay, k->gain = gain, k->gl = gl, k->gr = gr;
-        room_wall_filter_coefs(img[i].gain, img[i].hf, e->fs, &k->b0, &k->b1, &k->a1);
+        if (img[i].gain != k->wg || img[i].hf != k->whf) { /* the same walls: the same filter */
+            room_wall_filter_coefs(img[i].gain, img[i].hf, e->fs, &k->b0, &k->b1, &k->a1);
+            k->wg = img[i].gain, k->whf = img[i].hf;
+        }
         double dd = (delay - k->delay) / nb, dg = (gain - k->gain) / nb, dl = (gl - k->gl) / nb,
                dr = (gr - k->gr) / nb;
         for (int j = 0; j < nb; j++) {
@@ -1651,6 +1656,10 @@ static void reverb(wdrt_engine *e, int nb) {
         const double *b = r->cfg.box;
         double c[3] = {(b[0] + b[3]) / 2, (b[1] + b[4]) / 2, (b[2] + b[5]) / 2};
         r->heard_to = room_contains(&r->cfg, e->lis) ? 1 : outside(e, r, c);
+        if (!r->fed && r->asleep) {
+            r->heard = r->heard_to;
+            continue;
+        }
         if (!r->fed)
             memset(r->in, 0, sizeof(double) * (size_t)nb);
         double *l = e->rout, *rr = e->rout + e->B;
@@ -1664,6 +1673,15 @@ static void reverb(wdrt_engine *e, int nb) {
                 e->mix[2 * n] += h * l[n], e->mix[2 * n + 1] += h * rr[n];
         }
         r->heard = r->heard_to;
+        /* unfed, it sleeps once what it holds has died away (its lines are
+         * summed only once its output is quiet) */
+        r->asleep = 0;
+        if (!r->fed) {
+            double pk = 0;
+            for (int n = 0; n < nb; n++)
+                pk = fmax(pk, fabs(l[n]) + fabs(rr[n]));
+            r->asleep = pk < 1e-12 && room_fdn_energy(r->fdn) < 1e-24;
+        }
         r->fed = 0;
     }
 }
@@ -1677,17 +1695,31 @@ static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
      * still: the delay is the same for the whole block */
     int still = (double)q->moved * e->B + e->B < (double)t0 - tau0 * e->fs - 4 && e->lpath[0].left == 0 &&
                 e->lpath[1].left == 0 && e->lpath[2].left == 0 && e->nlmoves == 0;
+    /* otherwise tau is solved at the block's first, middle and last frames
+     * and follows the parabola through them: over 64 frames its error is
+     * of the order of the third derivative of tau times h^3, far below a
+     * thousandth of a sample for any source slower than sound */
+    double qa = 0, qb = 0;
+    int m = (nb - 1) / 2, last = nb - 1;
+    if (!still && last > 0) {
+        double pm[3];
+        double tm = retarded(e, q, (double)(t0 + (uint64_t)m), e->lpos + 3 * m, tau0, pm);
+        tau = retarded(e, q, (double)(t0 + (uint64_t)last), e->lpos + 3 * last, tm, p1);
+        /* tau(n) = tau0 + qa n + qb n^2 through (m, tm) and (last, tau) */
+        if (m > 0) {
+            double d1 = (tm - tau0) / m, d2 = (tau - tau0) / last;
+            qb = (d2 - d1) / (last - m);
+            qa = d1 - qb * m;
+        } else {
+            qa = (tau - tau0) / last;
+        }
+    } else {
+        memcpy(p1, p0, sizeof p1);
+    }
     for (int n = 0; n < nb; n++) {
-        double t = (double)(t0 + (uint64_t)n);
-        if (!still && n)
-            tau = retarded(e, q, t, e->lpos + 3 * n, tau, p1);
-        double te = t - tau * e->fs;
+        double te = (double)(t0 + (uint64_t)n) - (tau0 + (qa + qb * n) * n) * e->fs;
         e->sig[n] = te < (double)q->start - 2 ? 0 : space_read(q->buf, e->dmask, te);
     }
-    if (still)
-        memcpy(p1, p0, sizeof p1);
-    else
-        retarded(e, q, (double)(t0 + (uint64_t)nb - 1), e->lpos + 3 * (nb - 1), tau, p1);
     /* the room the source is in hears it as the listener does, before the
      * way's losses: its reverb starts after the direct sound */
     int ri = e->nrooms ? room_of(e, p1) : -1;
@@ -1701,6 +1733,7 @@ static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
         for (int n = 0; n < nb; n++)
             r->in[n] += e->sig[n];
         r->fed = 1;
+        r->asleep = 0;
     }
     q->tau = tau;
     const double *L0 = e->lpos, *L1 = e->lpos + 3 * (nb - 1);

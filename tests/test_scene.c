@@ -254,7 +254,11 @@ static const bad g_load_errors[] = {
     {"(rate \"fast\")", "1:7: error: expected a number, found a string"},
     {"(rate 10)", "1:7: error: a rate must lie between 1 kHz and 768 kHz"},
     {"(length -1)", "1:9: error: a length must be positive and at most a day"},
-    {"(output quad)", "1:9: error: expected mono or stereo"},
+    {"(output quad)", "1:9: error: expected mono, stereo or binaural"},
+    {"(output binaural \"nowhere.sofa\")", "1:18: error: cannot read the HRTF file"},
+    {"(room r (box 0 0 0 1 1 1) (reflections 1))", "1:1: error: a room needs its (box ...) and its (t60 LOW HIGH)"},
+    {"(room r (box 0 0 0 1 -1 1) (t60 1 1))", "1:9: error: a box runs from its lower corner to its upper one, within 10 km"},
+    {"(room r (box 0 0 0 1 1 1) (t60 1 1) (reflections 5))", "1:50: error: reflections of order 0 to 3"},
     {"(voice p \"x.wdn\")\n(voice p \"y.wdn\")", "2:8: error: a voice named 'p' is already in the scene"},
     {"(voice p x.wdn)", "1:10: error: expected the netlist's file name in double quotes, found a symbol"},
     {"(voice p \"x.wdn\" (pool 0))", "1:24: error: a pool holds 1 to 100000 voices"},
@@ -272,7 +276,17 @@ static const bad g_load_errors[] = {
      "2:38: error: keys of a curve must come in time order"},
     {"(voice p \"x.wdn\")\n(at 1 (strik p))", "2:8: error: unknown event 'strik'; did you mean 'strike'?"},
     {"(voice p \"x.wdn\")\n(at 1 (stop p p))", "2:7: error: expected (stop NAME)"},
-    {"(voice p \"x.wdn\" (pos 0 1 0))", "1:18: error: placing a voice in space needs the spatial layer, which this build does not have"},
+    {"(voice p \"x.wdn\" (pos 0 1))", "1:18: error: expected (pos X Y Z) or (pos (path (TIME X Y Z)...))"},
+    {"(voice p \"x.wdn\" (pos (path (0 1 2 3) (1 1 2))))", "1:39: error: expected a key (TIME X Y Z)"},
+    {"(voice p \"x.wdn\" (pos (path (1 0 0 0) (0.5 1 2 3))))", "1:40: error: keys of a path must come in time order"},
+    {"(distance inverso)", "1:11: error: unknown distance model 'inverso'; did you mean 'inverse'?"},
+    {"(distance linear (ref 10) (max 5))", "1:1: error: the maximum distance must be beyond the reference distance"},
+    {"(distance linear (reff 10))", "1:18: error: expected (ref M), (max M) or (rolloff R)"},
+    {"(c 0)", "1:4: error: the speed of sound lies between 1 and 100000 m/s"},
+    {"(air maybe)", "1:6: error: expected on or off"},
+    {"(listener (facing 0 0 1))", "1:11: error: a listener faces some way across the ground (x or y not 0)"},
+    {"(wall w (from 0 0) (to 1 1))", "1:1: error: expected (wall NAME (from X Y) (to X Y) (loss DB))"},
+    {"(wall w (from 0 0) (to 1) (loss 3))", "1:20: error: expected (to X Y)"},
     {"(budget 0)", "1:9: error: a budget is a positive share of one core (0.5 = half)"},
     {"42", "1:1: error: expected a form such as (voice ...) or (at ...)"},
     {"(voice p \"x.wdn\"", "1:17: error: expected ')' to close '(' at 1:1"}, /* the reader's */
@@ -333,7 +347,14 @@ static const char *const g_seeds[] = {
     "(at 0.5 (strike s (v m 1) (x m -1m)) (set m hard (curve (0 1) (0.5 4))))\n"
     "(at 0.75 (gain s 0.3) (stop m))\n",
     "; comment\n(voice a \"y.wdn\")(at 0 (strike a (v m 1)))(at 1e-3 (set a hard 1k))",
+    "(output stereo) (c 340) (distance linear (ref 1) (max 50) (rolloff 0.5)) (air on)\n"
+    "(listener (pos (path (0 0 0 1.7) (0.02 1 0 1.7))) (facing 0 1 0))\n"
+    "(wall w (from -3 2) (to 3 2) (loss 12))\n"
+    "(voice m \"x.wdn\" (pool 2) (pos 0 5 1))\n"
+    "(voice s \"x.wdn\" (pos (path (0 -5 3 1) (0.02 5 3 1))))\n"
+    "(at 0.001 (play m (strike (v m 1) (x m -0.2m))))\n",
 };
+#define NSEEDS ((int)(sizeof g_seeds / sizeof *g_seeds))
 
 static int valid_error(const char *path, const char *err) {
     size_t n = strlen(path);
@@ -355,7 +376,7 @@ static void fuzz(long iters, uint64_t seed) {
     snprintf(path, sizeof path, "%s/f.wds", g_dir);
     long ok = 0, errs = 0;
     for (long it = 0; it < iters; it++) {
-        const char *seedtext = g_seeds[tl_rng_next(&r) % 2];
+        const char *seedtext = g_seeds[tl_rng_next(&r) % NSEEDS];
         char buf[4096];
         size_t n = strlen(seedtext);
         memcpy(buf, seedtext, n);
