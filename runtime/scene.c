@@ -11,12 +11,14 @@
  */
 #include "wdrt.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "cx.h"
 #include "sexp.h"
 
 #define MAX_PLAY_SETS 32
@@ -45,6 +47,9 @@ typedef struct scvoice {
     double gain, pan, cost, quiet, hold;
     const sx *gain_curve;
     int priority, virtualize;
+    int placed;       /* (pos ...) given */
+    double pos[3];
+    const sx *path;   /* (pos (path ...)), or NULL */
     const char *out_name;
     const sx *out_at;
     int output;
@@ -84,6 +89,18 @@ struct wdrt_scene {
     int nvoices;
     scevent *ev;
     int nev;
+    struct sccomplex *cx; /* complexes (section "complexes"): pools after the voices */
+    int ncx;
+    /* space (section "space") */
+    wdrt_space_config sp;
+    double lis[3];
+    const sx *lis_path;  /* the listener's (path ...), or NULL */
+    wdrt_wall *walls;
+    int nwalls, sources;
+    wdrt_room *rooms;
+    int nrooms;
+    int binaural;        /* (output binaural) */
+    char *sofa;          /* its HRTF file, or NULL: the default */
     char *err;           /* where readers write their error */
     size_t errlen;
 };
@@ -238,6 +255,9 @@ static int voice_index(const wdrt_scene *S, const char *name) {
     return -1;
 }
 
+/* complexes' names share the voices' (section "complexes") */
+static int complex_index(const wdrt_scene *S, const char *name);
+
 static int voice_ref(wdrt_scene *S, const sx *x, int *vi) {
     if (!x || x->kind != SX_SYM)
         return ERR(x, "expected the name of a voice, found a %s", kind_of(x));
@@ -272,9 +292,18 @@ static int f_length(wdrt_scene *S, const sx *f) {
     return 0;
 }
 
-/* output = '(' 'output' ( 'mono' | 'stereo' ) ')' */
+static char *resolve_path(const wdrt_scene *S, const char *p) {
+    if (p[0] == '/' || !S->dir[0])
+        return xstrdup(p);
+    char *r = xcalloc(strlen(S->dir) + strlen(p) + 2, 1);
+    sprintf(r, "%s/%s", S->dir, p);
+    return r;
+}
+
+/* output = '(' 'output' ( 'mono' | 'stereo' | 'binaural' [ STRING ] ) ')'
+ *   binaural: through the HRTF of the SOFA file (default Debian's KEMAR) */
 static int f_output(wdrt_scene *S, const sx *f) {
-    if (arity(S, f, 2, 3, "(output mono|stereo)"))
+    if (arity(S, f, 2, 3, "(output mono|stereo|binaural [\"file.sofa\"])"))
         return -1;
     const sx *m = f->head->next;
     if (sx_is(m, "mono"))
@@ -282,11 +311,22 @@ static int f_output(wdrt_scene *S, const sx *f) {
     else if (sx_is(m, "stereo"))
         S->channels = 2;
     else if (sx_is(m, "binaural"))
-        return ERR(m, "binaural output needs the spatial layer, which this build does not have");
+        S->channels = 2, S->binaural = 1;
     else
-        return ERR(m, "expected mono or stereo");
-    if (f->len > 2)
+        return ERR(m, "expected mono, stereo or binaural");
+    if (f->len > 2 && !S->binaural)
         return ERR(m->next, "only binaural output takes a file");
+    if (f->len > 2) {
+        const sx *file = m->next;
+        if (file->kind != SX_STR)
+            return ERR(file, "expected the SOFA file's name in double quotes, found a %s", kind_of(file));
+        free(S->sofa);
+        S->sofa = resolve_path(S, file->text);
+        FILE *t = fopen(S->sofa, "rb");
+        if (!t)
+            return ERR(file, "cannot read the HRTF file '%s'", S->sofa);
+        fclose(t);
+    }
     return 0;
 }
 
@@ -309,15 +349,225 @@ static int f_sleep(wdrt_scene *S, const sx *f) {
     return 0;
 }
 
+/* ---- space ---- */
+
+/* path = '(' 'path' ( '(' T X Y Z ')' )+ ')'   times rising, s and m */
+static int path(wdrt_scene *S, const sx *f) {
+    if (f->len < 2)
+        return ERR(f, "a path needs at least one (TIME X Y Z) key");
+    double last = -1;
+    for (const sx *k = f->head->next; k; k = k->next) {
+        double v[4];
+        if (k->kind != SX_LIST || k->len != 4)
+            return ERR(k, "expected a key (TIME X Y Z)");
+        int i = 0;
+        for (const sx *x = k->head; x; x = x->next)
+            if (number(S, x, &v[i++]))
+                return -1;
+        if (v[0] < 0)
+            return ERR(k->head, "a key's time must not be negative");
+        if (v[0] < last)
+            return ERR(k->head, "keys of a path must come in time order");
+        if (fabs(v[1]) > 1e6 || fabs(v[2]) > 1e6 || fabs(v[3]) > 1e6)
+            return ERR(k, "positions lie within 1000 km");
+        last = v[0];
+    }
+    return 0;
+}
+
+/* Where a path is at time t: linear between keys, held outside. */
+static void path_at(const sx *f, double t, double p[3]) {
+    const sx *k = f->head->next, *prev = NULL;
+    while (k && k->head->num <= t)
+        prev = k, k = k->next;
+    const sx *a = prev ? prev : k, *b = k ? k : prev;
+    double ta = a->head->num, tb = b->head->num, w = tb > ta ? (t - ta) / (tb - ta) : 0;
+    const sx *xa = a->head->next, *xb = b->head->next;
+    for (int j = 0; j < 3; j++, xa = xa->next, xb = xb->next)
+        p[j] = xa->num + (xb->num - xa->num) * (w < 0 ? 0 : w > 1 ? 1 : w);
+}
+
+static double path_end(const sx *f) {
+    const sx *k = f->head->next;
+    while (k->next)
+        k = k->next;
+    return k->head->num;
+}
+
+/* position = '(' 'pos' ( X Y Z | path ) ')' */
+static int position(wdrt_scene *S, const sx *f, double p[3], const sx **pth) {
+    const sx *a = f->head->next;
+    *pth = NULL;
+    if (a && a->kind == SX_LIST && sx_is(a->head, "path")) {
+        if (arity(S, f, 2, 2, "(pos (path (TIME X Y Z)...))") || path(S, a))
+            return -1;
+        *pth = a;
+        path_at(a, 0, p);
+        return 0;
+    }
+    if (arity(S, f, 4, 4, "(pos X Y Z) or (pos (path (TIME X Y Z)...))"))
+        return -1;
+    for (int j = 0; j < 3; j++, a = a->next)
+        if (number(S, a, &p[j]))
+            return -1;
+    if (fabs(p[0]) > 1e6 || fabs(p[1]) > 1e6 || fabs(p[2]) > 1e6)
+        return ERR(f, "positions lie within 1000 km");
+    return 0;
+}
+
+/* c = '(' 'c' M/S ')' */
+static int f_c(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 2, "(c M/S)") || number(S, f->head->next, &S->sp.c))
+        return -1;
+    if (!(S->sp.c >= 1 && S->sp.c <= 1e5))
+        return ERR(f->head->next, "the speed of sound lies between 1 and 100000 m/s");
+    return 0;
+}
+
+/* distance = '(' 'distance' MODEL ( '(' ( 'ref' | 'max' | 'rolloff' ) NUMBER ')' )* ')' */
+static int f_distance(wdrt_scene *S, const sx *f) {
+    static const char *const models[] = {"none", "inverse", "linear", "exponent"};
+    if (arity(S, f, 2, 5, "(distance inverse|linear|exponent|none (ref M) (max M) (rolloff R))"))
+        return -1;
+    const sx *m = f->head->next;
+    int k = -1;
+    for (int i = 0; i < 4; i++)
+        if (sx_is(m, models[i]))
+            k = i;
+    if (k < 0)
+        return m->kind == SX_SYM ? unknown(S, m, "distance model", m->text, models, 4)
+                                 : ERR(m, "expected inverse, linear, exponent or none");
+    S->sp.distance = (wdrt_distance)k;
+    for (const sx *p = m->next; p; p = p->next) {
+        double x;
+        if (p->kind != SX_LIST || p->len != 2 ||
+            !(sx_is(p->head, "ref") || sx_is(p->head, "max") || sx_is(p->head, "rolloff")))
+            return ERR(p, "expected (ref M), (max M) or (rolloff R)");
+        if (number(S, p->head->next, &x))
+            return -1;
+        if (sx_is(p->head, "rolloff") ? !(x >= 0 && x <= 100) : !(x > 0 && x <= 1e6))
+            return ERR(p->head->next, "out of range");
+        *(sx_is(p->head, "ref") ? &S->sp.ref : sx_is(p->head, "max") ? &S->sp.max : &S->sp.rolloff) = x;
+    }
+    if (!(S->sp.max > S->sp.ref))
+        return ERR(f, "the maximum distance must be beyond the reference distance");
+    return 0;
+}
+
+/* air = '(' 'air' ( 'on' | 'off' ) ')' */
+static int f_air(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, 2, "(air on|off)"))
+        return -1;
+    if (!sx_is(f->head->next, "on") && !sx_is(f->head->next, "off"))
+        return ERR(f->head->next, "expected on or off");
+    S->sp.air = sx_is(f->head->next, "on");
+    return 0;
+}
+
+/* listener = '(' 'listener' [ position ] [ '(' 'facing' X Y Z ')' ] ')' */
+static int f_listener(wdrt_scene *S, const sx *f) {
+    for (const sx *p = f->head->next; p; p = p->next) {
+        if (p->kind == SX_LIST && sx_is(p->head, "pos")) {
+            if (position(S, p, S->lis, &S->lis_path))
+                return -1;
+        } else if (p->kind == SX_LIST && sx_is(p->head, "facing")) {
+            if (arity(S, p, 4, 4, "(facing X Y Z)"))
+                return -1;
+            const sx *a = p->head->next;
+            for (int j = 0; j < 3; j++, a = a->next)
+                if (number(S, a, &S->sp.facing[j]))
+                    return -1;
+            if (!(fabs(S->sp.facing[0]) + fabs(S->sp.facing[1]) > 0))
+                return ERR(p, "a listener faces some way across the ground (x or y not 0)");
+        } else {
+            return ERR(p, "expected (pos ...) or (facing X Y Z)");
+        }
+    }
+    return 0;
+}
+
+/* wall = '(' 'wall' NAME '(' 'from' X Y ')' '(' 'to' X Y ')' '(' 'loss' DB ')' ')' */
+static int f_wall(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 5, 5, "(wall NAME (from X Y) (to X Y) (loss DB))"))
+        return -1;
+    if (f->head->next->kind != SX_SYM)
+        return ERR(f->head->next, "expected the name of the wall, found a %s", kind_of(f->head->next));
+    S->walls = grow(S->walls, S->nwalls, sizeof *S->walls);
+    wdrt_wall *w = &S->walls[S->nwalls++];
+    const char *keys[] = {"from", "to", "loss"};
+    const sx *p = f->head->next->next;
+    for (int i = 0; i < 3; i++, p = p->next) {
+        int n = i < 2 ? 3 : 2;
+        if (p->kind != SX_LIST || !sx_is(p->head, keys[i]) || p->len != n)
+            return ERR(p, "expected (%s %s)", keys[i], i < 2 ? "X Y" : "DB");
+        double *dst = i == 0 ? w->from : i == 1 ? w->to : &w->loss_db;
+        if (number(S, p->head->next, &dst[0]) || (n == 3 && number(S, p->head->next->next, &dst[1])))
+            return -1;
+    }
+    if (!(w->loss_db >= 0 && w->loss_db <= 200))
+        return ERR(f, "a wall's loss is 0 to 200 dB");
+    return 0;
+}
+
+/* room = '(' 'room' NAME '(' 'box' X0 Y0 Z0 X1 Y1 Z1 ')' '(' 't60' LOW HIGH ')'
+ *        [ '(' 'reflections' ORDER ')' ] ')'
+ *   LOW: T60 in s at and below 500 Hz, HIGH: at and above 4 kHz */
+static int f_room(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 4, 6, "(room NAME (box X0 Y0 Z0 X1 Y1 Z1) (t60 LOW HIGH) [(reflections ORDER)])"))
+        return -1;
+    if (f->head->next->kind != SX_SYM)
+        return ERR(f->head->next, "expected the name of the room, found a %s", kind_of(f->head->next));
+    S->rooms = grow(S->rooms, S->nrooms, sizeof *S->rooms);
+    wdrt_room *r = &S->rooms[S->nrooms++];
+    memset(r, 0, sizeof *r);
+    r->order = 1;
+    int have = 0;
+    for (const sx *p = f->head->next->next; p; p = p->next) {
+        if (p->kind == SX_LIST && sx_is(p->head, "ambient"))
+            return ERR(p, "an ambient tree needs timbre trees, which this build does not have");
+        int k = sx_is(p->head, "box") ? 0 : sx_is(p->head, "t60") ? 1 : sx_is(p->head, "reflections") ? 2 : -1;
+        int len = k == 0 ? 7 : k == 1 ? 3 : 2;
+        if (p->kind != SX_LIST || k < 0 || p->len != len)
+            return ERR(p, "expected (box X0 Y0 Z0 X1 Y1 Z1), (t60 LOW HIGH) or (reflections ORDER)");
+        double v[6];
+        const sx *a = p->head->next;
+        for (int i = 0; i < len - 1; i++, a = a->next)
+            if (number(S, a, &v[i]))
+                return -1;
+        have |= 1 << k;
+        if (k == 0) {
+            memcpy(r->box, v, sizeof r->box);
+            if (!(v[0] < v[3] && v[1] < v[4] && v[2] < v[5]) || fabs(v[0]) + fabs(v[3]) > 1e4 ||
+                fabs(v[1]) + fabs(v[4]) > 1e4 || fabs(v[2]) + fabs(v[5]) > 1e4)
+                return ERR(p, "a box runs from its lower corner to its upper one, within 10 km");
+        } else if (k == 1) {
+            r->t60_low = v[0], r->t60_high = v[1];
+            if (!(v[0] >= 0.05 && v[0] <= 60 && v[1] >= 0.05 && v[1] <= 60))
+                return ERR(p, "reverberation times lie between 0.05 and 60 s");
+        } else {
+            if (v[0] != floor(v[0]) || v[0] < 0 || v[0] > 3)
+                return ERR(p->head->next, "reflections of order 0 to 3");
+            r->order = (int)v[0];
+        }
+    }
+    if ((have & 3) != 3)
+        return ERR(f, "a room needs its (box ...) and its (t60 LOW HIGH)");
+    return 0;
+}
+
+/* sources = '(' 'sources' N ')'   delay lines: placed voices heard at once */
+static int f_sources(wdrt_scene *S, const sx *f) {
+    double x;
+    if (arity(S, f, 2, 2, "(sources N)") || number(S, f->head->next, &x))
+        return -1;
+    if (x != floor(x) || x < 1 || x > 4096)
+        return ERR(f->head->next, "1 to 4096 sources");
+    S->sources = (int)x;
+    return 0;
+}
+
 /* ---- voices ---- */
 
-static char *resolve_path(const wdrt_scene *S, const char *p) {
-    if (p[0] == '/' || !S->dir[0])
-        return xstrdup(p);
-    char *r = xcalloc(strlen(S->dir) + strlen(p) + 2, 1);
-    sprintf(r, "%s/%s", S->dir, p);
-    return r;
-}
 
 /* param = '(' 'param' NAME value ')' */
 static int param(wdrt_scene *S, const sx *f, scparam *p) {
@@ -363,8 +613,10 @@ static int voice_prop(wdrt_scene *S, scvoice *v, const sx *p) {
         v->gain = g.v, v->gain_curve = g.curve;
         return 0;
     }
-    if (!strcmp(k, "pos"))
-        return ERR(p, "placing a voice in space needs the spatial layer, which this build does not have");
+    if (!strcmp(k, "pos")) {
+        v->placed = 1;
+        return position(S, p, v->pos, &v->path);
+    }
     int known = 0;
     for (int i = 0; i < (int)(sizeof props / sizeof *props); i++)
         known |= !strcmp(k, props[i]);
@@ -409,6 +661,8 @@ static int f_voice(wdrt_scene *S, const sx *f) {
         return ERR(n, "expected the name of the voice, found a %s", kind_of(n));
     if (voice_index(S, n->text) >= 0)
         return ERR(n, "a voice named '%s' is already in the scene", n->text);
+    if (complex_index(S, n->text) >= 0)
+        return ERR(n, "'%s' is already in the scene", n->text);
     if (file->kind != SX_STR)
         return ERR(file, "expected the netlist's file name in double quotes, found a %s", kind_of(file));
     S->voices = grow(S->voices, S->nvoices, sizeof *S->voices);
@@ -424,6 +678,152 @@ static int f_voice(wdrt_scene *S, const sx *f) {
         if (voice_prop(S, v, p))
             return -1;
     return 0;
+}
+
+/* ---- complexes ----
+ *
+ * A complex (cx.h) is heard as a source of its own: its file is read
+ * and its tree of waves and score made when the scene loads; at render
+ * it is one more owned pool after the voices, its class built around its
+ * score and reached through the pool's bind hook.  It stands awake from
+ * the start and plays silence until its (at T), then the traversal;
+ * once played it sleeps (its energy is the time it has left).  Events do
+ * not address complexes. */
+
+typedef struct sccomplex {
+    const char *name;
+    const sx *at;
+    double gain, pan, time;
+    cx_complex *K;
+    cx_tree *T;
+    cx_score *score;
+} sccomplex;
+
+static int complex_index(const wdrt_scene *S, const char *name) {
+    for (int i = 0; i < S->ncx; i++)
+        if (!strcmp(S->cx[i].name, name))
+            return i;
+    return -1;
+}
+
+/* One number in [lo, hi] from (KEY X). */
+static int cx_number(wdrt_scene *S, const sx *p, const char *usage, double lo, double hi, const char *range,
+                     double *x) {
+    if (arity(S, p, 2, 2, usage) || number(S, p->head->next, x))
+        return -1;
+    if (!(*x >= lo && *x <= hi))
+        return ERR(p->head->next, "%s", range);
+    return 0;
+}
+
+/* A property of a complex: (name "LIST") (start V) (tempo X) (gain G)
+ * (pan X) (at T) (granular X) */
+static int complex_prop(wdrt_scene *S, sccomplex *c, const sx *p, cx_sound_opts *o, const sx **list,
+                        const sx **start) {
+    static const char *const props[] = {"name", "start", "tempo", "gain", "pan", "at", "granular"};
+    if (p->kind != SX_LIST || !p->head || p->head->kind != SX_SYM)
+        return ERR(p, "expected a property such as (start V) or (tempo X)");
+    const char *k = p->head->text;
+    if (!strcmp(k, "name")) {
+        if (arity(S, p, 2, 2, "(name \"LIST\")"))
+            return -1;
+        if (p->head->next->kind != SX_STR)
+            return ERR(p->head->next, "expected the list's name in double quotes, found a %s", kind_of(p->head->next));
+        *list = p->head->next;
+        return 0;
+    }
+    if (!strcmp(k, "start")) {
+        double v;
+        if (cx_number(S, p, "(start VERTEX)", 0, 999999999, "a vertex is a whole number from 0", &v))
+            return -1;
+        if (v != floor(v))
+            return ERR(p->head->next, "a vertex is a whole number from 0");
+        *start = p->head->next;
+        return 0;
+    }
+    if (!strcmp(k, "tempo"))
+        return cx_number(S, p, "(tempo X)", 0.01, 100, "a tempo is a speed factor from 0.01 to 100", &o->tempo);
+    if (!strcmp(k, "gain"))
+        return cx_number(S, p, "(gain G)", -1e6, 1e6, "a gain is a number", &c->gain);
+    if (!strcmp(k, "pan"))
+        return cx_number(S, p, "(pan X)", -1, 1, "pan lies between -1 (left) and 1 (right)", &c->pan);
+    if (!strcmp(k, "at"))
+        return cx_number(S, p, "(at TIME)", 0, 86400, "a start time is in seconds, at most a day", &c->time);
+    if (!strcmp(k, "granular"))
+        return cx_number(S, p, "(granular X)", 0, 1, "an explosion factor lies between 0 and 1", &o->granular);
+    return unknown(S, p->head, "property", k, props, (int)(sizeof props / sizeof *props));
+}
+
+/* The complex's file read, its start found, its tree and score made. */
+static int complex_load(wdrt_scene *S, sccomplex *c, const sx *file, const sx *list, const sx *start,
+                        const cx_sound_opts *o) {
+    char *path = resolve_path(S, file->text);
+    FILE *f = fopen(path, "rb");
+    if (!f) { /* said here, at the name; errors inside the file are the file's */
+        ERR(file, "cannot read the complex '%s': %s", path, strerror(errno));
+        free(path);
+        return -1;
+    }
+    fclose(f);
+    c->K = cx_read_file(path, list ? list->text : NULL, S->err, S->errlen);
+    free(path);
+    if (!c->K)
+        return -1;
+    int v = start ? cx_vertex(c->K, (long)start->num) : 0;
+    if (v < 0)
+        return ERR(start, "complex %s has no vertex %ld", c->name, (long)start->num);
+    if (!(c->T = cx_waves(c->K, v)))
+        return ERR(file, "out of memory");
+    cx_turns(c->K, c->T);
+    if (!(c->score = cx_score_new(c->T, o)))
+        return ERR(file, "out of memory");
+    return 0;
+}
+
+/* complex = '(' 'complex' NAME STRING property* ')' */
+static int f_complex(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 3, -1, "(complex NAME \"file\" ...)"))
+        return -1;
+    const sx *n = f->head->next, *file = n->next, *list = NULL, *start = NULL;
+    if (n->kind != SX_SYM)
+        return ERR(n, "expected the name of the complex, found a %s", kind_of(n));
+    if (voice_index(S, n->text) >= 0 || complex_index(S, n->text) >= 0)
+        return ERR(n, "'%s' is already in the scene", n->text);
+    if (file->kind != SX_STR)
+        return ERR(file, "expected the complex's file name in double quotes, found a %s", kind_of(file));
+    S->cx = grow(S->cx, S->ncx, sizeof *S->cx);
+    sccomplex *c = &S->cx[S->ncx++];
+    memset(c, 0, sizeof *c);
+    c->name = n->text, c->at = n, c->gain = 1;
+    cx_sound_opts o = cx_sound_opts_init();
+    for (const sx *p = file->next; p; p = p->next)
+        if (complex_prop(S, c, p, &o, &list, &start))
+            return -1;
+    return complex_load(S, c, file, list, start, &o);
+}
+
+static void complex_free(sccomplex *c) {
+    cx_score_free(c->score);
+    cx_tree_free(c->T);
+    cx_free(c->K);
+}
+
+/* The complexes' pools, after the voices' in pc; their classes live in
+ * src (S->ncx of them), which must outlive the engine. */
+static void complex_pools(const wdrt_scene *S, wdrt_pool_config *pc, cx_source *src) {
+    for (int i = 0; i < S->ncx; i++) {
+        const sccomplex *c = &S->cx[i];
+        cx_source_init(&src[i], c->score, c->time);
+        pc[i] = wdrt_pool_config_init(&src[i].cls, 1);
+        pc[i].owned = 1;
+        pc[i].gain = c->gain;
+        pc[i].pan = c->pan;
+        pc[i].bind = cx_source_bind;
+        pc[i].data = &src[i];
+        /* measured at init, a complex that starts later would cost its
+         * silence: about 23 ns a sample per note sounding, at most maxactive */
+        pc[i].cost_ns = CX_NOTE_NS * (c->score->maxactive > 0 ? c->score->maxactive : 1);
+    }
 }
 
 /* ---- the timeline ---- */
@@ -569,7 +969,9 @@ typedef struct form {
 
 static const form forms[] = {
     {"rate", f_rate},   {"length", f_length}, {"output", f_output}, {"budget", f_budget},
-    {"sleep", f_sleep}, {"voice", f_voice},   {"at", f_at},
+    {"sleep", f_sleep}, {"voice", f_voice},   {"at", f_at},       {"c", f_c},
+    {"distance", f_distance}, {"air", f_air}, {"listener", f_listener}, {"wall", f_wall}, {"sources", f_sources},
+    {"room", f_room},     {"complex", f_complex},
 };
 #define NFORMS ((int)(sizeof forms / sizeof *forms))
 
@@ -604,6 +1006,7 @@ wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err, siz
     S->rate = 48000;
     S->channels = 1;
     S->sleep = 1;
+    S->sp = wdrt_engine_config_init(48000, 1, 0, NULL).space;
     S->dir = xstrdup(path);
     char *slash = strrchr(S->dir, '/');
     if (slash)
@@ -632,7 +1035,13 @@ void wdrt_scene_free(wdrt_scene *S) {
         free(S->ev[i].sets);
         free(S->ev[i].pairs);
     }
+    for (int i = 0; i < S->ncx; i++)
+        complex_free(&S->cx[i]);
+    free(S->cx);
     free(S->voices);
+    free(S->walls);
+    free(S->rooms);
+    free(S->sofa);
     free(S->ev);
     free(S->dir);
     sx_free(S->doc);
@@ -727,11 +1136,13 @@ wdrt_result wdrt_scene_bind(wdrt_scene *S, int i, const wdv_class *cls, char *er
 /* ---- rendering ---- */
 
 /* A curve that drives a param or a gain during the render. */
+enum { DRIVE_GAIN = -1, DRIVE_MOVE = -2, DRIVE_LISTEN = -3 };
+
 typedef struct drive {
     const sx *curve;
     double offset;  /* s added to the curve's times */
     wdrt_voice v;
-    int param;      /* -1: the gain */
+    int param;      /* DRIVE_GAIN, DRIVE_MOVE, DRIVE_LISTEN, or the param */
     uint64_t next;  /* the next grid frame it posts at */
     uint64_t end;   /* the frame after which it has posted its last value */
 } drive;
@@ -761,9 +1172,10 @@ static void add_drive(render *R, const sx *c, double offset, wdrt_voice v, int p
     d->offset = offset;
     d->v = v;
     d->param = param;
-    uint64_t f0 = frame_of(offset + curve_start(c), R->fs);
+    int moves = param == DRIVE_MOVE || param == DRIVE_LISTEN; /* a path: its keys are (T X Y Z) */
+    uint64_t f0 = frame_of(offset + (moves ? c->head->next->head->num : curve_start(c)), R->fs);
     d->next = f0 / (uint64_t)R->B * (uint64_t)R->B;
-    d->end = frame_of(offset + curve_end(c), R->fs) + (uint64_t)R->B;
+    d->end = frame_of(offset + (moves ? path_end(c) : curve_end(c)), R->fs) + (uint64_t)R->B;
 }
 
 /* Posts one scene event; a play goes in parts (the play, its sets, its
@@ -786,7 +1198,7 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
         return wdrt_engine_set(e, f, v, x->set.id, x->set.val.v);
     case SE_GAIN:
         if (x->set.val.curve) {
-            add_drive(R, x->set.val.curve, x->time, v, -1);
+            add_drive(R, x->set.val.curve, x->time, v, DRIVE_GAIN);
             return WDRT_OK;
         }
         return wdrt_engine_gain(e, f, v, x->set.val.v);
@@ -828,10 +1240,17 @@ static uint64_t post_due(render *R, uint64_t now, uint64_t until) {
         drive *d = &R->dr[i];
         while (d->next < until && d->next <= d->end) {
             /* the value the ramp from this frame reaches a block later */
-            double t = (double)(d->next + (uint64_t)R->B) / R->fs - d->offset;
-            double x = curve_at(d->curve, t);
-            wdrt_result r = d->param < 0 ? wdrt_engine_gain(R->e, d->next, d->v, x)
-                                         : wdrt_engine_set(R->e, d->next, d->v, d->param, x);
+            double t = (double)(d->next + (uint64_t)R->B) / R->fs - d->offset, p[3];
+            wdrt_result r;
+            if (d->param == DRIVE_MOVE || d->param == DRIVE_LISTEN) {
+                path_at(d->curve, t, p);
+                r = d->param == DRIVE_MOVE ? wdrt_engine_move(R->e, d->next, d->v, p)
+                                           : wdrt_engine_listen(R->e, d->next, p, NULL);
+            } else {
+                double x = curve_at(d->curve, t);
+                r = d->param == DRIVE_GAIN ? wdrt_engine_gain(R->e, d->next, d->v, x)
+                                           : wdrt_engine_set(R->e, d->next, d->v, d->param, x);
+            }
             if (r == WDRT_QUEUE_FULL)
                 return d->next > now ? d->next : now + 1;
             d->next += (uint64_t)R->B;
@@ -859,6 +1278,8 @@ static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o
         pc[i].quiet = v->quiet;
         pc[i].hold = v->hold;
         pc[i].virtualize = v->virtualize;
+        pc[i].placed = v->placed;
+        memcpy(pc[i].pos, v->pos, sizeof v->pos);
         pv[i] = xcalloc((size_t)v->cls->n_params + 1, sizeof(double));
         for (int k = 0; k < v->cls->n_params; k++)
             pv[i][k] = v->cls->params[k].def;
@@ -877,7 +1298,9 @@ static void add_voice_drives(render *R) {
             if (v->params[k].val.curve)
                 add_drive(R, v->params[k].val.curve, 0, handle(R, i), v->params[k].id);
         if (v->gain_curve)
-            add_drive(R, v->gain_curve, 0, handle(R, i), -1);
+            add_drive(R, v->gain_curve, 0, handle(R, i), DRIVE_GAIN);
+        if (v->path)
+            add_drive(R, v->path, 0, handle(R, i), DRIVE_MOVE);
     }
 }
 
@@ -897,8 +1320,29 @@ static uint64_t last_frame(const render *R) {
                 t = fmax(t, curve_end(S->voices[i].params[k].val.curve));
         if (S->voices[i].gain_curve)
             t = fmax(t, curve_end(S->voices[i].gain_curve));
+        if (S->voices[i].path)
+            t = fmax(t, path_end(S->voices[i].path));
     }
+    if (S->lis_path)
+        t = fmax(t, path_end(S->lis_path));
     return frame_of(t, R->fs) + 1;
+}
+
+/* The engine's spatial layer: on when a voice is placed, with a delay line
+ * for each placed voice (at most 64 unless the scene says) and a few for
+ * sound still in flight. */
+static void space_config(const wdrt_scene *S, wdrt_space_config *sp) {
+    int n = 0;
+    for (int i = 0; i < S->nvoices; i++)
+        if (S->voices[i].placed)
+            n += S->voices[i].pool ? S->voices[i].pool : 1;
+    *sp = S->sp;
+    sp->sources = n == 0 ? 0 : S->sources ? S->sources : n + 4 < 64 ? n + 4 : 64;
+    memcpy(sp->listener, S->lis, sizeof S->lis);
+    sp->walls = S->walls;
+    sp->nwalls = S->nwalls;
+    sp->rooms = S->rooms;
+    sp->nrooms = S->nrooms;
 }
 
 wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, double **frames, long *nframes,
@@ -906,21 +1350,36 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     if (!S || !frames || !nframes || !nch)
         return WDRT_INVALID_ARGS;
     render R;
-    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + 1, sizeof *pc);
+    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + (size_t)S->ncx + 1, sizeof *pc);
+    cx_source *srcs = xcalloc((size_t)S->ncx + 1, sizeof *srcs);
     double **pv = xcalloc((size_t)S->nvoices + 1, sizeof *pv);
     wdrt_result res = WDRT_INVALID_ARGS;
     double *out = NULL;
+    wdrt_hrtf *ears = NULL;
     if (render_init(&R, S, o, pc, pv) != 0)
         goto done;
-    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices, pc);
+    complex_pools(S, pc + S->nvoices, srcs);
+    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices + S->ncx, pc);
     ec.queue = 1 << 16;
     ec.pending = 1 << 16;
     ec.sleep = S->sleep && !(o && o->nosleep);
     ec.budget_ns = o && o->budget_ns > 0 ? o->budget_ns : S->budget_cpu * 1e9 / R.fs;
+    space_config(S, &ec.space);
+    if (S->binaural && ec.space.sources > 0) {
+        char err[512];
+        if (!(ears = wdrt_hrtf_open(S->sofa, R.fs, err, sizeof err))) {
+            fputs(err, stderr);
+            res = WDRT_FORMAT;
+            goto done;
+        }
+        ec.space.hrtf = ears;
+    }
     if ((res = wdrt_engine_init(&ec, NULL, &R.e)) != WDRT_OK)
         goto done;
     R.B = ec.block;
     add_voice_drives(&R);
+    if (S->lis_path)
+        add_drive(&R, S->lis_path, 0, 0, DRIVE_LISTEN);
     double secs = o && o->seconds > 0 ? o->seconds : S->length;
     uint64_t n = secs > 0 ? frame_of(secs, R.fs) : 0, last = last_frame(&R);
     uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0, alloc = 0;
@@ -960,10 +1419,12 @@ done:
     free(out);
     if (R.e)
         wdrt_engine_uninit(R.e, NULL);
+    wdrt_hrtf_close(ears);
     for (int i = 0; i < S->nvoices; i++)
         free(pv[i]);
     free(pv);
     free(pc);
+    free(srcs);
     free(R.dr);
     return res;
 }

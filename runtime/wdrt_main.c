@@ -3,6 +3,8 @@
  *
  *     wdrt render SCENE.wds [-o OUT.wav] [--seconds S] [--rate HZ]
  *                 [--budget NS] [--nosleep] [--quiet]
+ *     wdrt complex FILE [--name LIST] [--start V] [--waves] [--tempo X]
+ *                  [--granular[=X]] [-o OUT.wav] [--rate HZ] [--quiet]
  *
  * Each netlist a scene names is turned into a voice by running wdc and
  * the C compiler once; the shared object is kept under the cache folder
@@ -15,6 +17,8 @@
  * internal error.
  */
 #include "wdrt.h"
+
+#include "cx.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -36,6 +40,8 @@ enum { EXIT_INPUT = 1, EXIT_USAGE = 2, EXIT_TOOL = 3 };
 static const char usage_text[] =
     "usage: wdrt render SCENE.wds [-o OUT.wav] [--seconds S] [--rate HZ]\n"
     "                             [--budget NS] [--nosleep] [--quiet]\n"
+    "       wdrt complex FILE [--name LIST] [--start V] [--waves] [--tempo X]\n"
+    "                     [--granular[=X]] [-o OUT.wav] [--rate HZ] [--quiet]\n"
     "       wdrt --help\n"
     "\n"
     "render   renders a scene (.wds) to a 32-bit float WAV (default: out/SCENE.wav);\n"
@@ -47,6 +53,20 @@ static const char usage_text[] =
     "  --budget NS     ns per sample the voices may cost (default: the scene's budget)\n"
     "  --nosleep       never put quiet voices to sleep\n"
     "  --quiet         no progress and no summary\n"
+    "\n"
+    "complex  reads a simplicial complex (Lutz's NAME=[[1,2,3],...] lists, or one facet per\n"
+    "         line) and hears it: its tree of waves as additive synthesis, written to a WAV\n"
+    "         (default: out/FILE.wav, unless --waves alone is asked for)\n"
+    "  --name LIST     the list of a Lutz file to read (default: the first)\n"
+    "  --start V       the vertex the traversal starts at (default: the lowest-numbered)\n"
+    "  --waves         print the tree of waves, one line per wave component:\n"
+    "                  dim=D wave=I component=C vertices=V simplices=S parent=P\n"
+    "  --tempo X       play X times as fast (default 1: a 1-wave lasts 0.24 s)\n"
+    "  --granular[=X]  cut the sound into grains, sparser and shorter as the explosion\n"
+    "                  factor X (0..1, default 0.5) grows\n"
+    "  -o OUT.wav      where to write\n"
+    "  --rate HZ       sample rate (default 48 kHz)\n"
+    "  --quiet         no summary\n"
     "\n"
     "exit status: 0 ok, 1 input error, 2 usage error, 3 toolchain or internal error\n";
 
@@ -403,6 +423,151 @@ static int cmd_render(int argc, char **argv) {
     return status;
 }
 
+/* ---- complex ---- */
+
+typedef struct cxopts {
+    const char *file, *name, *out, *start;
+    int waves, quiet;
+    double rate;
+    cx_sound_opts snd;
+} cxopts;
+
+static cxopts parse_complex(int argc, char **argv) {
+    cxopts o;
+    memset(&o, 0, sizeof o);
+    o.snd = cx_sound_opts_init();
+    o.rate = 48000;
+    for (int i = 2; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "-o") || !strcmp(a, "--name") || !strcmp(a, "--start")) {
+            if (i + 1 >= argc)
+                usage_error("%s needs a value", a);
+            *(a[1] == 'o' ? &o.out : a[2] == 'n' ? &o.name : &o.start) = argv[++i];
+        } else if (!strcmp(a, "--waves")) {
+            o.waves = 1;
+        } else if (!strcmp(a, "--quiet")) {
+            o.quiet = 1;
+        } else if (!strcmp(a, "--tempo")) {
+            o.snd.tempo = take_number(argc, argv, &i);
+        } else if (!strcmp(a, "--rate")) {
+            o.rate = take_number(argc, argv, &i);
+            if (o.rate < 1000 || o.rate > 768000)
+                usage_error("--rate lies between 1000 and 768000 Hz");
+        } else if (!strcmp(a, "--granular") || !strncmp(a, "--granular=", 11)) {
+            char *end = NULL;
+            o.snd.granular = a[10] ? strtod(a + 11, &end) : 0.5;
+            if ((end && *end) || !(o.snd.granular >= 0 && o.snd.granular <= 1))
+                usage_error("--granular takes an explosion factor from 0 to 1, not '%s'", a + 11);
+        } else if (a[0] == '-' && a[1]) {
+            usage_error("unknown option '%s'", a);
+        } else if (o.file) {
+            usage_error("one complex at a time ('%s' and '%s')", o.file, a);
+        } else {
+            o.file = a;
+        }
+    }
+    if (!o.file)
+        usage_error("complex needs a file");
+    return o;
+}
+
+/* The vertex labelled `text` in K, or -1 after saying why. */
+static int start_vertex(const cx_complex *K, const char *file, const char *text) {
+    char *end;
+    long v = strtol(text, &end, 10);
+    if (*end || end == text)
+        usage_error("--start takes a vertex number, not '%s'", text);
+    int id = cx_vertex(K, v);
+    if (id < 0)
+        fprintf(stderr, "wdrt: error: %s: the complex has no vertex %ld\n", file, v);
+    return id;
+}
+
+/* Renders the score through an engine, as a scene would host it. */
+static double *render_score(const cx_score *sc, double fs, long *n) {
+    cx_source src;
+    cx_source_init(&src, sc, 0);
+    wdrt_pool_config pc = wdrt_pool_config_init(&src.cls, 1);
+    pc.owned = 1, pc.bind = cx_source_bind, pc.data = &src, pc.cost_ns = 1;
+    wdrt_engine_config ec = wdrt_engine_config_init(fs, 1, 1, &pc);
+    wdrt_engine *e;
+    *n = (long)llround(sc->length * fs) + 1;
+    double *y = malloc(sizeof *y * (size_t)*n);
+    if (!y || wdrt_engine_init(&ec, NULL, &e) != WDRT_OK) {
+        free(y);
+        return NULL;
+    }
+    for (long t = 0; t < *n; t += 4096)
+        wdrt_engine_process(e, y + t, (uint32_t)(*n - t < 4096 ? *n - t : 4096));
+    wdrt_engine_uninit(e, NULL);
+    return y;
+}
+
+/* out/NAME.wav for FILE = .../NAME.EXT */
+static char *complex_out(const char *file) {
+    const char *base = strrchr(file, '/'), *dot;
+    base = base ? base + 1 : file;
+    dot = strrchr(base, '.');
+    int n = dot && dot > base ? (int)(dot - base) : (int)strlen(base);
+    char *p = malloc((size_t)n + 16);
+    if (p)
+        sprintf(p, "out/%.*s.wav", n, base);
+    return p;
+}
+
+static int write_complex(const cxopts *o, const cx_score *sc) {
+    char *def = o->out ? NULL : complex_out(o->file);
+    const char *path = o->out ? o->out : def;
+    long n;
+    double *y = render_score(sc, o->rate, &n);
+    int status = 0;
+    if (!y) {
+        fprintf(stderr, "wdrt: error: out of memory\n");
+        status = EXIT_TOOL;
+    } else if ((o->out || !mkdir_p("out")) && wdrt_wav_write(path, 1, o->rate, y, n) != WDRT_OK) {
+        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+        status = EXIT_USAGE;
+    } else if (!o->quiet) {
+        double pk = 0;
+        for (long i = 0; i < n; i++)
+            pk = fmax(pk, fabs(y[i]));
+        fprintf(stderr, "wdrt: wrote %s: %.2f s, %d notes (at most %d at once), peak %.1f dBFS\n", path, n / o->rate,
+                sc->nnotes, sc->maxactive, pk > 0 ? 20 * log10(pk) : -400.0);
+    }
+    free(y);
+    free(def);
+    return status;
+}
+
+static int cmd_complex(int argc, char **argv) {
+    cxopts o = parse_complex(argc, argv);
+    char err[4096];
+    cx_complex *K = cx_read_file(o.file, o.name, err, sizeof err);
+    if (!K) {
+        fputs(err, stderr);
+        return EXIT_INPUT;
+    }
+    int start = o.start ? start_vertex(K, o.file, o.start) : 0, status = start < 0 ? EXIT_INPUT : 0;
+    cx_tree *T = status ? NULL : cx_waves(K, start);
+    cx_score *sc = NULL;
+    if (!status && T) {
+        cx_turns(K, T);
+        sc = cx_score_new(T, &o.snd);
+    }
+    if (!status && !sc) {
+        fprintf(stderr, "wdrt: error: out of memory\n");
+        status = EXIT_TOOL;
+    }
+    if (!status && o.waves)
+        cx_tree_print(stdout, T);
+    if (!status && (o.out || !o.waves))
+        status = write_complex(&o, sc);
+    cx_score_free(sc);
+    cx_tree_free(T);
+    cx_free(K);
+    return status;
+}
+
 int main(int argc, char **argv) {
     if (argc < 2)
         usage_error("no command");
@@ -412,6 +577,8 @@ int main(int argc, char **argv) {
     }
     if (!strcmp(argv[1], "render"))
         return cmd_render(argc, argv);
+    if (!strcmp(argv[1], "complex"))
+        return cmd_complex(argc, argv);
     usage_error("unknown command '%s'", argv[1]);
     return EXIT_USAGE;
 }
