@@ -28,64 +28,12 @@
 
 /* Sanitizers bring their own malloc: those builds leave the counting
  * allocator out. */
-#if defined(__SANITIZE_THREAD__) || defined(__SANITIZE_ADDRESS__)
-#define COUNTING 0
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer) || __has_feature(address_sanitizer)
-#define COUNTING 0
-#endif
-#endif
-#ifndef COUNTING
-#define COUNTING 1
-#endif
 
 #define FS 48000.0
 #define BLOCK 64
 #define DEG (M_PI / 180)
 
-/* ---- the counting allocator: counts calls made inside the marked
- * region (hrtf_src_init, _process, _clear) ---- */
-
-static volatile int g_in_rt;
-static volatile long g_rt_allocs;
-
-#if COUNTING
-extern void *__libc_malloc(size_t);
-extern void *__libc_calloc(size_t, size_t);
-extern void *__libc_realloc(void *, size_t);
-extern void *__libc_memalign(size_t, size_t);
-extern void __libc_free(void *);
-
-static void count(void) {
-    if (g_in_rt)
-        g_rt_allocs++;
-}
-void *malloc(size_t n) {
-    count();
-    return __libc_malloc(n);
-}
-void *calloc(size_t a, size_t b) {
-    count();
-    return __libc_calloc(a, b);
-}
-void *realloc(void *p, size_t n) {
-    count();
-    return __libc_realloc(p, n);
-}
-void *aligned_alloc(size_t al, size_t n) {
-    count();
-    return __libc_memalign(al, n);
-}
-int posix_memalign(void **p, size_t al, size_t n) {
-    count();
-    *p = __libc_memalign(al, n);
-    return *p ? 0 : 12;
-}
-void free(void *p) {
-    count();
-    __libc_free(p);
-}
-#endif
+#include "countalloc.h"
 
 /* ---- helpers ---- */
 
@@ -418,14 +366,14 @@ static void test_energy(void **s) {
  * seen (so a zero below means something). */
 static void test_counter_counts(void **s) {
     (void)s;
-    if (!COUNTING)
+    if (!CA_COUNTING)
         skip();
-    g_rt_allocs = 0;
-    g_in_rt = 1;
+    ca_allocs = 0;
+    ca_in_rt = 1;
     void *volatile p = malloc(16);
-    g_in_rt = 0;
+    ca_in_rt = 0;
     free(p);
-    assert_int_equal(g_rt_allocs, 1);
+    assert_int_equal(ca_allocs, 1);
 }
 
 /* init, process (a source turning every block, blocks of every length
@@ -433,7 +381,7 @@ static void test_counter_counts(void **s) {
  * and sample, steady and crossfading every block. */
 static void test_no_alloc(void **s) {
     (void)s;
-    if (!COUNTING)
+    if (!CA_COUNTING)
         skip();
     enum { N = 96000 };
     double *in = malloc(sizeof(double) * N), *l = calloc(N, sizeof(double)), *r = calloc(N, sizeof(double));
@@ -442,8 +390,8 @@ static void test_no_alloc(void **s) {
     for (int i = 0; i < N; i++)
         in[i] = sin(0.05 * i);
     double ns[2];
-    g_rt_allocs = 0;
-    g_in_rt = 1;
+    ca_allocs = 0;
+    ca_in_rt = 1;
     hrtf_src *src = hrtf_src_init(g_h, mem);
     for (int turning = 0; turning < 2; turning++) {
         clock_t t0 = clock();
@@ -459,10 +407,10 @@ static void test_no_alloc(void **s) {
         hrtf_src_process(g_h, src, d, in + pos, l + pos, r + pos, n);
     }
     hrtf_src_clear(src);
-    g_in_rt = 0;
-    print_message("%ld allocations; %.0f ns per sample steady, %.0f crossfading every block of %d\n", g_rt_allocs,
+    ca_in_rt = 0;
+    print_message("%ld allocations; %.0f ns per sample steady, %.0f crossfading every block of %d\n", ca_allocs,
                   ns[0], ns[1], BLOCK);
-    assert_int_equal(g_rt_allocs, 0);
+    assert_int_equal(ca_allocs, 0);
     free(mem);
     free(in), free(l), free(r);
 }

@@ -21,61 +21,10 @@
 #include "room.h"
 #include "testlib.h"
 
-#if defined(__SANITIZE_THREAD__) || defined(__SANITIZE_ADDRESS__)
-#define COUNTING 0
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer) || __has_feature(address_sanitizer)
-#define COUNTING 0
-#endif
-#endif
-#ifndef COUNTING
-#define COUNTING 1
-#endif
 
 #define PI 3.14159265358979323846
 
-/* ---- the counting allocator: counts calls made inside the marked region ---- */
-
-static volatile int g_counting;
-static volatile long g_allocs;
-
-#if COUNTING
-extern void *__libc_malloc(size_t);
-extern void *__libc_calloc(size_t, size_t);
-extern void *__libc_realloc(void *, size_t);
-extern void *__libc_memalign(size_t, size_t);
-extern void __libc_free(void *);
-
-static void count(void) {
-    if (g_counting)
-        g_allocs++;
-}
-void *malloc(size_t n) {
-    count();
-    return __libc_malloc(n);
-}
-void *calloc(size_t a, size_t b) {
-    count();
-    return __libc_calloc(a, b);
-}
-void *realloc(void *p, size_t n) {
-    count();
-    return __libc_realloc(p, n);
-}
-void *aligned_alloc(size_t al, size_t n) {
-    count();
-    return __libc_memalign(al, n);
-}
-int posix_memalign(void **p, size_t al, size_t n) {
-    count();
-    *p = __libc_memalign(al, n);
-    return *p ? 0 : 12;
-}
-void free(void *p) {
-    count();
-    __libc_free(p);
-}
-#endif
+#include "countalloc.h"
 
 /* ---- helpers ---- */
 
@@ -602,21 +551,21 @@ static void test_no_alloc(void **s) {
     static room_image im[400];
     for (int i = 0; i < B; i++)
         in[i] = i % 97 == 0;
-    g_allocs = 0;
-    g_counting = 1;
+    ca_allocs = 0;
+    ca_in_rt = 1;
     for (int b = 0; b < 200; b++) {
         room_fdn_process(f, in, l, r, B);
         src[0] += 0.01;
         assert_int_equal(room_images(&c, src, im, 400), 376);
     }
-    g_counting = 0;
-    assert_int_equal(g_allocs, 0);
-#if COUNTING
-    g_counting = 1; /* the counter counts */
+    ca_in_rt = 0;
+    assert_int_equal(ca_allocs, 0);
+#if CA_COUNTING
+    ca_in_rt = 1; /* the counter counts */
     void *volatile p = malloc(16);
-    g_counting = 0;
+    ca_in_rt = 0;
     free(p);
-    assert_int_equal(g_allocs, 1);
+    assert_int_equal(ca_allocs, 1);
 #endif
     free(f);
 }

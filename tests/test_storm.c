@@ -23,70 +23,18 @@
 
 #include "testlib.h"
 
-#if defined(__SANITIZE_THREAD__)
-#define COUNTING 0
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-#define COUNTING 0
-#endif
-#endif
-#ifndef COUNTING
-#define COUNTING 1
-#endif
 
 #define FS 48000.0
 #define NEV 100000
 #define EVERY 3   /* frames between events */
 #define HOST 256  /* frames per process call */
 
-/* ---- the counting allocator: counts what the audio thread allocates
- * while it is inside wdrt_engine_process ---- */
-
-static __thread volatile int g_in_process;
-static volatile long g_rt_allocs;
-
-#if COUNTING
-extern void *__libc_malloc(size_t);
-extern void *__libc_calloc(size_t, size_t);
-extern void *__libc_realloc(void *, size_t);
-extern void *__libc_memalign(size_t, size_t);
-extern void __libc_free(void *);
-
-static void count(void) {
-    if (g_in_process)
-        __atomic_add_fetch(&g_rt_allocs, 1, __ATOMIC_RELAXED);
-}
-void *malloc(size_t n) {
-    count();
-    return __libc_malloc(n);
-}
-void *calloc(size_t a, size_t b) {
-    count();
-    return __libc_calloc(a, b);
-}
-void *realloc(void *p, size_t n) {
-    count();
-    return __libc_realloc(p, n);
-}
-void *aligned_alloc(size_t al, size_t n) {
-    count();
-    return __libc_memalign(al, n);
-}
-int posix_memalign(void **p, size_t al, size_t n) {
-    count();
-    *p = __libc_memalign(al, n);
-    return *p ? 0 : 12;
-}
-void free(void *p) {
-    count();
-    __libc_free(p);
-}
-#endif
+#include "countalloc.h"
 
 static void process(wdrt_engine *e, double *out, uint32_t n) {
-    g_in_process = 1;
+    ca_in_rt = 1;
     wdrt_engine_process(e, out, n);
-    g_in_process = 0;
+    ca_in_rt = 0;
 }
 
 /* ---- the storm ---- */
@@ -217,7 +165,7 @@ static void test_storm(void **s) {
     e = make_engine();
     producer p = {e, 0};
     double *out = calloc((size_t)N * 2, sizeof(double));
-    g_rt_allocs = 0;
+    ca_allocs = 0;
     pthread_t th;
     assert_int_equal(pthread_create(&th, NULL, produce, &p), 0);
     for (long pos = 0; pos < N; pos += HOST) {
@@ -231,10 +179,10 @@ static void test_storm(void **s) {
     wdrt_engine_get_stats(e, &st);
     print_message("storm: %llu events, %llu late, %llu to ended notes, %llu steals; %ld allocations in process\n",
                   (unsigned long long)st.events, (unsigned long long)st.late, (unsigned long long)st.dropped,
-                  (unsigned long long)st.steals, g_rt_allocs);
+                  (unsigned long long)st.steals, ca_allocs);
     assert_int_equal((int)st.events, NEV);
     assert_int_equal((int)st.late, 0);
-    assert_int_equal(g_rt_allocs, 0);
+    assert_int_equal(ca_allocs, 0);
     long diff = 0;
     for (long i = 0; i < N * 2; i++)
         diff += out[i] != ref[i];
@@ -252,14 +200,14 @@ static void test_storm(void **s) {
  * seen (so a zero above means something). */
 static void test_counter_counts(void **s) {
     (void)s;
-    if (!COUNTING)
+    if (!CA_COUNTING)
         skip();
-    g_rt_allocs = 0;
-    g_in_process = 1;
+    ca_allocs = 0;
+    ca_in_rt = 1;
     void *volatile p = malloc(16);
-    g_in_process = 0;
+    ca_in_rt = 0;
     free(p);
-    assert_int_equal(g_rt_allocs, 1);
+    assert_int_equal(ca_allocs, 1);
 }
 
 int main(void) {
