@@ -1651,6 +1651,7 @@ static double outside(const wdrt_engine *e, const room *r, const double *c) {
 /* The reverb of every room, fed by the sources in it this block and heard
  * fully inside it, and from outside as outside() says. */
 static void reverb(wdrt_engine *e, int nb) {
+    e->s.rooms = 0;
     for (int i = 0; i < e->nrooms; i++) {
         room *r = &e->rooms[i];
         const double *b = r->cfg.box;
@@ -1682,6 +1683,7 @@ static void reverb(wdrt_engine *e, int nb) {
                 pk = fmax(pk, fabs(l[n]) + fabs(rr[n]));
             r->asleep = pk < 1e-12 && room_fdn_energy(r->fdn) < 1e-24;
         }
+        e->s.rooms += !r->asleep;
         r->fed = 0;
     }
 }

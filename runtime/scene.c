@@ -697,6 +697,9 @@ typedef struct sccomplex {
     cx_complex *K;
     cx_tree *T;
     cx_score *score;
+    int placed;        /* (pos ...) given */
+    double pos[3];
+    const sx *path;    /* (pos (path ...)), or NULL */
 } sccomplex;
 
 static int complex_index(const wdrt_scene *S, const char *name) {
@@ -720,7 +723,7 @@ static int cx_number(wdrt_scene *S, const sx *p, const char *usage, double lo, d
  * (pan X) (at T) (granular X) */
 static int complex_prop(wdrt_scene *S, sccomplex *c, const sx *p, cx_sound_opts *o, const sx **list,
                         const sx **start) {
-    static const char *const props[] = {"name", "start", "tempo", "gain", "pan", "at", "granular"};
+    static const char *const props[] = {"name", "start", "tempo", "gain", "pan", "at", "granular", "pos"};
     if (p->kind != SX_LIST || !p->head || p->head->kind != SX_SYM)
         return ERR(p, "expected a property such as (start V) or (tempo X)");
     const char *k = p->head->text;
@@ -749,6 +752,10 @@ static int complex_prop(wdrt_scene *S, sccomplex *c, const sx *p, cx_sound_opts 
         return cx_number(S, p, "(pan X)", -1, 1, "pan lies between -1 (left) and 1 (right)", &c->pan);
     if (!strcmp(k, "at"))
         return cx_number(S, p, "(at TIME)", 0, 86400, "a start time is in seconds, at most a day", &c->time);
+    if (!strcmp(k, "pos")) {
+        c->placed = 1;
+        return position(S, p, c->pos, &c->path);
+    }
     if (!strcmp(k, "granular"))
         return cx_number(S, p, "(granular X)", 0, 1, "an explosion factor lies between 0 and 1", &o->granular);
     return unknown(S, p->head, "property", k, props, (int)(sizeof props / sizeof *props));
@@ -818,6 +825,8 @@ static void complex_pools(const wdrt_scene *S, wdrt_pool_config *pc, cx_source *
         pc[i].owned = 1;
         pc[i].gain = c->gain;
         pc[i].pan = c->pan;
+        pc[i].placed = c->placed;
+        memcpy(pc[i].pos, c->pos, sizeof c->pos);
         pc[i].bind = cx_source_bind;
         pc[i].data = &src[i];
         /* measured at init, a complex that starts later would cost its
@@ -1325,6 +1334,9 @@ static uint64_t last_frame(const render *R) {
     }
     if (S->lis_path)
         t = fmax(t, path_end(S->lis_path));
+    for (int i = 0; i < S->ncx; i++)
+        if (S->cx[i].path)
+            t = fmax(t, path_end(S->cx[i].path));
     return frame_of(t, R->fs) + 1;
 }
 
@@ -1336,6 +1348,8 @@ static void space_config(const wdrt_scene *S, wdrt_space_config *sp) {
     for (int i = 0; i < S->nvoices; i++)
         if (S->voices[i].placed)
             n += S->voices[i].pool ? S->voices[i].pool : 1;
+    for (int i = 0; i < S->ncx; i++)
+        n += S->cx[i].placed;
     *sp = S->sp;
     sp->sources = n == 0 ? 0 : S->sources ? S->sources : n + 4 < 64 ? n + 4 : 64;
     memcpy(sp->listener, S->lis, sizeof S->lis);
@@ -1380,6 +1394,9 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     add_voice_drives(&R);
     if (S->lis_path)
         add_drive(&R, S->lis_path, 0, 0, DRIVE_LISTEN);
+    for (int i = 0; i < S->ncx; i++)
+        if (S->cx[i].path)
+            add_drive(&R, S->cx[i].path, 0, wdrt_engine_voice(R.e, S->nvoices + i, 0), DRIVE_MOVE);
     double secs = o && o->seconds > 0 ? o->seconds : S->length;
     uint64_t n = secs > 0 ? frame_of(secs, R.fs) : 0, last = last_frame(&R);
     uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0, alloc = 0;
@@ -1402,7 +1419,8 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
         wdrt_engine_get_stats(R.e, &st);
         if (o && o->progress)
             o->progress(secs > 0 ? (double)t / (double)cap : -(double)t / R.fs, o->user);
-        if (secs <= 0 && t >= last && R.ei == S->nev && st.awake == 0 && st.virtual_ == 0)
+        if (secs <= 0 && t >= last && R.ei == S->nev && st.awake == 0 && st.virtual_ == 0 && st.sources == 0 &&
+            st.rooms == 0) /* rung down: nothing sounds, nothing in flight, no reverb left */
             break;
     }
     wdrt_engine_get_stats(R.e, &st);

@@ -301,6 +301,7 @@ typedef struct wdrt_engine_stats {
     uint64_t sleeps, wakes, steals, virtualized, revived;
     uint64_t cuts;       /* voices stolen with no spare to fade on */
     int sources;         /* delay lines in use (placed voices and sound in flight) */
+    int rooms;           /* rooms whose reverb still rings */
     uint64_t unplaced;   /* placed voices that found no free delay line */
 } wdrt_engine_stats;
 

@@ -241,6 +241,39 @@ static void test_gain_curve(void **s) {
     wdrt_scene_free(sc);
 }
 
+/* A complex placed 343 m away with no distance model and no air is heard
+ * as it sounds, exactly one second (48000 frames) late. */
+static void test_placed_complex(void **s) {
+    (void)s;
+    double *y[2];
+    long n[2];
+    for (int placed = 0; placed < 2; placed++) {
+        char text[8192];
+        snprintf(text, sizeof text,
+                 "(distance none) (air off)\n"
+                 "(complex k \"%s/scenes/sphere.cx\" (tempo 4)%s)\n",
+                 g_cwd, placed ? " (pos 0 343 0)" : "");
+        const char *scene = write_file("k.wds", text);
+        char err[2048];
+        wdrt_scene *sc;
+        assert_int_equal(wdrt_scene_load(scene, &sc, err, sizeof err), WDRT_OK);
+        double rate;
+        int nch;
+        assert_int_equal(wdrt_scene_render(sc, NULL, &y[placed], &n[placed], &nch, &rate, NULL), WDRT_OK);
+        assert_int_equal(nch, 1);
+        wdrt_scene_free(sc);
+    }
+    assert_true(n[1] >= n[0] + 48000 - 64);
+    long differ = 0;
+    for (long i = 0; i < n[0]; i++)
+        differ += y[1][i + 48000] != y[0][i];
+    for (long i = 0; i < 48000; i++)
+        differ += y[1][i] != 0;
+    assert_int_equal(differ, 0);
+    free(y[0]);
+    free(y[1]);
+}
+
 /* ---- errors ---- */
 
 typedef struct bad {
@@ -445,7 +478,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache),   cmocka_unit_test(test_rings_down),
         cmocka_unit_test(test_gain_curve),  cmocka_unit_test(test_load_errors), cmocka_unit_test(test_bind_errors),
-        cmocka_unit_test(test_fuzz),
+        cmocka_unit_test(test_fuzz),        cmocka_unit_test(test_placed_complex),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
