@@ -1393,9 +1393,11 @@ static void wake_inputs(wdrt_engine *e, int callpos, int nb) {
             continue;
         }
         v->peak = v->peak > e->pools[v->pool].cfg.quiet ? v->peak : e->pools[v->pool].cfg.quiet;
-        if (v->mode == M_ASLEEP || v->mode == M_VIRTUAL) {
-            if (v->mode == M_VIRTUAL)
-                unvirt(e, k);
+        if (v->mode == M_VIRTUAL) { /* still fed: it stays as audible as it was, and the budget decides */
+            v->vdec = 1;
+            continue;
+        }
+        if (v->mode == M_ASLEEP) {
             e->s.wakes++;
             v->mode = M_AWAKE;
             v->start = first;

@@ -508,11 +508,57 @@ static void test_binaural(void **s) {
     wdrt_hrtf_close(h);
 }
 
+/* Under a budget for one, of two placed voices sounding alike the far one
+ * goes virtual: audibility is what arrives. */
+static void test_far_goes_virtual(void **s) {
+    (void)s;
+    const long n = 48000;
+    double *in = sine(250, n), *y0 = direct(in, n);
+    for (int far = 0; far < 2; far++) {
+        wdrt_pool_config pc[2];
+        for (int i = 0; i < 2; i++) {
+            pc[i] = wdrt_pool_config_init(g_msd.cls, 1);
+            pc[i].owned = 1;
+            pc[i].cost_ns = 100;
+            pc[i].placed = 1;
+            pc[i].hold = 1000;
+            pc[i].pos[1] = i == far ? 400 : 3;
+        }
+        wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 2, pc);
+        ec.space.sources = 4;
+        ec.space.air = 0;
+        ec.budget_ns = 150;
+        wdrt_engine *e;
+        assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+        double *y = calloc((size_t)n, sizeof(double));
+        for (long pos = 0; pos < n; pos += 64) {
+            for (int i = 0; i < 2; i++)
+                assert_int_equal(wdrt_engine_bind_input(e, wdrt_engine_voice(e, i, 0), 0, in + pos), WDRT_OK);
+            wdrt_engine_process(e, y + pos, 64);
+        }
+        wdrt_engine_stats st;
+        wdrt_engine_get_stats(e, &st);
+        assert_int_equal((int)st.virtualized, 1);
+        assert_int_equal(st.awake, 1);
+        /* the one still computed is the near one: what is heard is it
+         * alone, at 3 m (inverse distance from 1 m: a third) */
+        double g = arriving_gain(y, y0, n / 2, n, 250, 3 / 343.0 * FS);
+        assert_true(fabs(g - 1.0 / 3) < 1e-3);
+        free(y);
+        wdrt_engine_uninit(e, NULL);
+        print_message("budget for one, voices at 3 m and 400 m (the far one %d): %d virtual, %d awake\n", far,
+                      st.virtual_, st.awake);
+    }
+    free(in);
+    free(y0);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_arrival), cmocka_unit_test(test_doppler), cmocka_unit_test(test_distance_models),
         cmocka_unit_test(test_air),     cmocka_unit_test(test_pan),     cmocka_unit_test(test_wall),
         cmocka_unit_test(test_lagrange),  cmocka_unit_test(test_obstacles), cmocka_unit_test(test_binaural),
+        cmocka_unit_test(test_far_goes_virtual),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
