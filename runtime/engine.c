@@ -150,6 +150,7 @@ typedef struct pool {
     unsigned char *tmpl;   /* a state as init left it */
     double *param;         /* values notes start from */
     double gain;           /* the pool's gain, ramped into every voice */
+    double cl, cr;         /* its constant-power pan: left and right gains */
     double cost;           /* ns per sample of one voice */
     uint32_t next_seq;     /* producer: the next note's sequence number */
     int chain, tail;       /* pool-wide events in this block */
@@ -402,6 +403,15 @@ static double now_ns(void) {
 
 /* ns per sample of one voice of cls: the best of three runs of 4096
  * frames from the state init leaves, in the engine's block length. */
+/* Points the scratch ports at silence in and the block buffers out, for a
+ * voice of cls run outside the mix (cost measurement, settling). */
+static void scratch_ports(wdrt_engine *e, const wdv_class *cls) {
+    for (int k = 0; k < cls->n_outputs; k++)
+        e->optr[k] = e->obuf + (size_t)k * (size_t)e->B;
+    for (int k = 0; k < cls->n_inputs; k++)
+        e->iptr[k] = e->zero;
+}
+
 static double measure_cost(wdrt_engine *e, const wdrt_pool_config *pc, void *st) {
     const wdv_class *cls = pc->cls;
     double best = 1e300;
@@ -409,14 +419,12 @@ static double measure_cost(wdrt_engine *e, const wdrt_pool_config *pc, void *st)
         cls->init(st, e->fs);
         if (pc->bind)
             pc->bind(st, pc->data);
-        for (int k = 0; k < cls->n_outputs; k++)
-            e->optr[k] = e->obuf + (size_t)k * (size_t)e->B;
-        for (int k = 0; k < cls->n_inputs; k++)
-            e->iptr[k] = e->zero;
+        scratch_ports(e, cls);
+        int frames = 0;
         double t0 = now_ns();
-        for (int n = 0; n < 4096; n += e->B)
+        for (; frames < 4096; frames += e->B)
             cls->process(st, e->iptr, e->optr, e->B);
-        double dt = (now_ns() - t0) / (4096.0 / e->B * e->B);
+        double dt = (now_ns() - t0) / frames;
         if (dt < best)
             best = dt;
     }
@@ -427,10 +435,7 @@ static double measure_cost(wdrt_engine *e, const wdrt_pool_config *pc, void *st)
  * no frames), so that instances copied from it do not each redesign on
  * the audio thread. */
 static void settle(wdrt_engine *e, const wdv_class *cls, void *st) {
-    for (int k = 0; k < cls->n_outputs; k++)
-        e->optr[k] = e->obuf;
-    for (int k = 0; k < cls->n_inputs; k++)
-        e->iptr[k] = e->zero;
+    scratch_ports(e, cls);
     cls->process(st, e->iptr, e->optr, 0);
 }
 
@@ -452,6 +457,8 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
         p->param = par;
         par += cls->n_params;
         p->gain = p->cfg.gain;
+        p->cl = c->channels == 2 ? cos((p->cfg.pan + 1) * 0.7853981633974483) : 1;
+        p->cr = c->channels == 2 ? sin((p->cfg.pan + 1) * 0.7853981633974483) : 0;
         p->next_seq = (uint32_t)p->cfg.voices + 1;
         p->chain = p->tail = -1;
         cls->init(p->tmpl, e->fs);
@@ -1220,16 +1227,21 @@ static void apply_event(wdrt_engine *e, int k, const ev *x, uint64_t now) {
 /* Feeds frames [a, b) of a placed voice's heard output, with its gain
  * and fade, into its delay line (none: it is not heard), and moves it
  * along its path. */
+/* The gain of the next frame: the voice's gain times its fade, each
+ * moving along its ramp. */
+static double envelope(inst *v) {
+    if (v->gain.left | v->fade.left)
+        return ramp_next(&v->gain) * ramp_next(&v->fade);
+    return v->gain.v * v->fade.v;
+}
+
 static void feed_segment(wdrt_engine *e, inst *v, const double *y, int a, int b, uint64_t t0) {
     int k = (int)(v - e->inst);
     slot *q = v->slot >= 0 && e->slots[v->slot].inst == k ? &e->slots[v->slot] : NULL;
     int moving = v->path[0].left | v->path[1].left | v->path[2].left;
     double pk = v->peak;
     for (int n = a; n < b; n++) {
-        double g = v->gain.v * v->fade.v;
-        if (v->gain.left | v->fade.left)
-            g = ramp_next(&v->gain) * ramp_next(&v->fade);
-        double x = g * y[n];
+        double x = envelope(v) * y[n];
         pk = fabs(x) > pk ? fabs(x) : pk;
         if (q)
             q->buf[(t0 + (uint64_t)n) & e->dmask] = x;
@@ -1249,23 +1261,14 @@ static void mix_segment(wdrt_engine *e, inst *v, int a, int b, uint64_t t0) {
         feed_segment(e, v, y, a, b, t0);
         return;
     }
-    double *m = e->mix;
-    double pk = v->peak, cl = 1, cr = 0;
-    if (e->nch == 2) {
-        double th = (p->cfg.pan + 1) * 0.7853981633974483;
-        cl = cos(th), cr = sin(th);
-    }
+    double *m = e->mix, pk = v->peak;
     for (int n = a; n < b; n++) {
-        double g = v->gain.v * v->fade.v;
-        if (v->gain.left | v->fade.left)
-            g = ramp_next(&v->gain) * ramp_next(&v->fade);
-        double s = g * y[n];
-        double as = fabs(s);
-        pk = as > pk ? as : pk;
+        double x = envelope(v) * y[n];
+        pk = fabs(x) > pk ? fabs(x) : pk;
         if (e->nch == 1)
-            m[n] += s;
+            m[n] += x;
         else
-            m[2 * n] += cl * s, m[2 * n + 1] += cr * s;
+            m[2 * n] += p->cl * x, m[2 * n + 1] += p->cr * x;
     }
     v->peak = pk;
 }

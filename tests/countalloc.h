@@ -66,4 +66,24 @@ void free(void *p) {
 }
 #endif
 
+/* A cmocka test that the counter counts: a malloc inside the marked
+ * region is seen, so a count of zero elsewhere means something.  For
+ * files that include cmocka.h before this header. */
+#ifdef cmocka_unit_test
+#if defined(__GNUC__)
+__attribute__((unused))
+#endif
+static void ca_test_counter_counts(void **s) {
+    (void)s;
+    if (!CA_COUNTING)
+        skip();
+    ca_allocs = 0;
+    ca_in_rt = 1;
+    void *volatile p = malloc(16);
+    ca_in_rt = 0;
+    free(p);
+    assert_int_equal(ca_allocs, 1);
+}
+#endif
+
 #endif

@@ -49,15 +49,7 @@ static int teardown(void **s) {
     return system(cmd) == 0 ? 0 : -1;
 }
 
-static const char *write_file(const char *name, const char *text) {
-    static char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/%s", g_dir, name);
-    FILE *f = fopen(path, "w");
-    assert_non_null(f);
-    fputs(text, f);
-    fclose(f);
-    return path;
-}
+static const char *write_file(const char *name, const char *text) { return tl_write_file(g_dir, name, text); }
 
 /* ---- facet lists ---- */
 
@@ -974,10 +966,6 @@ static void test_scene(void **s) {
     wdrt_scene_free(sc);
 }
 
-static int run(const char *cmd) {
-    int r = system(cmd);
-    return WIFEXITED(r) ? WEXITSTATUS(r) : -1;
-}
 
 /* wdrt complex: the tree printed as DESIGN 6.7 says, a WAV written, and
  * the exit statuses. */
@@ -987,7 +975,7 @@ static void test_cli(void **s) {
     char cmd[PATH_MAX * 3], out[PATH_MAX];
     snprintf(out, sizeof out, "%s/w.txt", g_dir);
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --name manifold_2_7_1 --start 4 --waves > %s", t, out);
-    assert_int_equal(run(cmd), 0);
+    assert_int_equal(tl_system(cmd), 0);
     FILE *f = fopen(out, "r");
     char text[1024] = "";
     assert_true(fread(text, 1, sizeof text - 1, f) > 0);
@@ -996,7 +984,7 @@ static void test_cli(void **s) {
                               "dim=1 wave=0 component=1 vertices=1 simplices=1 parent=1\n"
                               "dim=1 wave=1 component=1 vertices=6 simplices=12 parent=1\n");
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo 4 --granular=0.2 -o %s/c.wav --quiet", t, g_dir);
-    assert_int_equal(run(cmd), 0);
+    assert_int_equal(tl_system(cmd), 0);
     snprintf(out, sizeof out, "%s/c.wav", g_dir);
     int nch;
     double fs, *fr;
@@ -1005,10 +993,10 @@ static void test_cli(void **s) {
     assert_true(nch == 1 && fs == 48000 && nf == 2 * 2880 + 1); /* two 1-waves of 0.06 s */
     free(fr);
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --start 9 2>/dev/null", t);
-    assert_int_equal(run(cmd), 1);
+    assert_int_equal(tl_system(cmd), 1);
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo -1 2>/dev/null", t);
-    assert_int_equal(run(cmd), 2);
-    assert_int_equal(run("bin/wdrt complex /nonexistent.txt 2>/dev/null"), 1);
+    assert_int_equal(tl_system(cmd), 2);
+    assert_int_equal(tl_system("bin/wdrt complex /nonexistent.txt 2>/dev/null"), 1);
 }
 
 /* ---- errors ---- */

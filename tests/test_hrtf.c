@@ -362,19 +362,6 @@ static void test_energy(void **s) {
     free(in), free(l), free(r);
 }
 
-/* The counting allocator counts: a malloc inside the marked region is
- * seen (so a zero below means something). */
-static void test_counter_counts(void **s) {
-    (void)s;
-    if (!CA_COUNTING)
-        skip();
-    ca_allocs = 0;
-    ca_in_rt = 1;
-    void *volatile p = malloc(16);
-    ca_in_rt = 0;
-    free(p);
-    assert_int_equal(ca_allocs, 1);
-}
 
 /* init, process (a source turning every block, blocks of every length
  * up to 4096) and clear allocate nothing.  Prints the cost per source
@@ -421,7 +408,7 @@ int main(void) {
         cmocka_unit_test(test_sides),          cmocka_unit_test(test_median_plane),
         cmocka_unit_test(test_itd_grows),      cmocka_unit_test(test_matches_measurement),
         cmocka_unit_test(test_no_click),       cmocka_unit_test(test_blocks),
-        cmocka_unit_test(test_energy),         cmocka_unit_test(test_counter_counts),
+        cmocka_unit_test(test_energy),         cmocka_unit_test(ca_test_counter_counts),
         cmocka_unit_test(test_no_alloc),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -45,20 +45,8 @@ static int teardown(void **s) {
     return system(cmd) == 0 ? 0 : -1;
 }
 
-static const char *write_file(const char *name, const char *text) {
-    static char path[PATH_MAX];
-    snprintf(path, sizeof path, "%s/%s", g_dir, name);
-    FILE *f = fopen(path, "w");
-    assert_non_null(f);
-    fputs(text, f);
-    fclose(f);
-    return path;
-}
+static const char *write_file(const char *name, const char *text) { return tl_write_file(g_dir, name, text); }
 
-static int run(const char *cmd) {
-    int r = system(cmd);
-    return WIFEXITED(r) ? WEXITSTATUS(r) : -1;
-}
 
 /* A scene with piano_mid struck three times, one param stepped, against
  * the same events through wdc --render --events --csv (17 digits: every
@@ -82,7 +70,7 @@ static void test_matches_wdc(void **s) {
              "bin/wdc netlists/piano_mid.wdn -o %s/v --render %s/b.wav --csv %s/b.csv --events %s/a.events "
              "--seconds 1.5 >/dev/null",
              g_dir, g_dir, g_dir, g_dir);
-    assert_int_equal(run(cmd), 0);
+    assert_int_equal(tl_system(cmd), 0);
     char err[2048] = "";
     wdrt_scene *sc;
     assert_int_equal(wdrt_scene_load(scene, &sc, err, sizeof err), WDRT_OK);
@@ -139,11 +127,11 @@ static void test_cli_cache(void **s) {
              "export WDRT_CACHE=%s/cache; bin/wdrt render %s/c.wds -o %s/c1.wav --quiet & "
              "bin/wdrt render %s/c.wds -o %s/c2.wav --quiet; r=$?; wait $!; exit $(( r + $? ))",
              g_dir, g_dir, g_dir, g_dir, g_dir);
-    assert_int_equal(run(cmd), 0);
+    assert_int_equal(tl_system(cmd), 0);
     snprintf(cmd, sizeof cmd, "cmp -s %s/c1.wav %s/c2.wav", g_dir, g_dir);
-    assert_int_equal(run(cmd), 0);
+    assert_int_equal(tl_system(cmd), 0);
     snprintf(cmd, sizeof cmd, "test $(ls %s/cache | grep -vc tmp) -eq 1", g_dir);
-    assert_int_equal(run(cmd), 0);
+    assert_int_equal(tl_system(cmd), 0);
     int nch;
     double fs, *fr;
     long nf;
@@ -162,12 +150,12 @@ static void test_cli_cache(void **s) {
     free(fr);
     /* errors: a missing netlist, a bad option, a scene error */
     snprintf(cmd, sizeof cmd, "bin/wdrt render %s/c.wds --frobnicate 2>/dev/null", g_dir);
-    assert_int_equal(run(cmd), 2);
+    assert_int_equal(tl_system(cmd), 2);
     write_file("bad.wds", "(voice m \"nowhere.wdn\")\n");
     snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/bad.wds -o %s/x.wav 2>/dev/null", g_dir,
              g_dir, g_dir);
-    assert_int_equal(run(cmd), 1);
-    assert_int_equal(run("bin/wdrt --help >/dev/null"), 0);
+    assert_int_equal(tl_system(cmd), 1);
+    assert_int_equal(tl_system("bin/wdrt --help >/dev/null"), 0);
 }
 
 /* Without (length), a scene lasts until its last event has rung down:

@@ -196,21 +196,8 @@ static void test_storm(void **s) {
     wdrt_engine_uninit(e, NULL);
 }
 
-/* The counting allocator counts: a malloc inside the marked region is
- * seen (so a zero above means something). */
-static void test_counter_counts(void **s) {
-    (void)s;
-    if (!CA_COUNTING)
-        skip();
-    ca_allocs = 0;
-    ca_in_rt = 1;
-    void *volatile p = malloc(16);
-    ca_in_rt = 0;
-    free(p);
-    assert_int_equal(ca_allocs, 1);
-}
 
 int main(void) {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_counter_counts), cmocka_unit_test(test_storm)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(ca_test_counter_counts), cmocka_unit_test(test_storm)};
     return cmocka_run_group_tests(tests, setup, teardown);
 }

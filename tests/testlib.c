@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 /* ---- voices ---- */
@@ -823,3 +824,20 @@ char *tl_first_report(const char *text, Solver solver) {
     return buf;
 }
 
+
+const char *tl_write_file(const char *dir, const char *name, const char *text) {
+    static char path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "w");
+    if (!f)
+        fail_msg("cannot write %s", path);
+    fputs(text, f);
+    if (fclose(f) != 0)
+        fail_msg("cannot write %s", path);
+    return path;
+}
+
+int tl_system(const char *cmd) {
+    int r = system(cmd);
+    return WIFEXITED(r) ? WEXITSTATUS(r) : -1;
+}

@@ -65,6 +65,12 @@ int tl_voice_name(const char *dir, char *name, size_t cap);
 /* Removes the files of dir, then dir. */
 void tl_remove_dir(const char *dir);
 
+/* Writes text to DIR/NAME and returns that path (a static buffer, valid
+ * until the next call); fails the current test if it cannot. */
+const char *tl_write_file(const char *dir, const char *name, const char *text);
+/* Runs cmd through the shell: its exit status, or -1 if a signal ended it. */
+int tl_system(const char *cmd);
+
 /* A zeroed, 64-byte aligned state for cls, initialised at fs. */
 void *tl_state_new(const wdv_class *cls, double fs);
 void tl_state_free(void *state);
