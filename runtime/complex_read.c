@@ -569,23 +569,14 @@ cx_complex *cx_parse(const char *path, const char *text, size_t len, const char 
 }
 
 cx_complex *cx_read_file(const char *path, const char *name, char *err, size_t errlen) {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, errlen, "%s: error: cannot read: %s\n", path, strerror(errno));
-        return NULL;
-    }
-    size_t cap = 1 << 16, n = 0, k;
-    char *buf = malloc(cap);
-    while (buf && (k = fread(buf + n, 1, cap - n, f)) > 0)
-        if ((n += k) == cap) {
-            char *b = realloc(buf, cap *= 2);
-            if (!b)
-                free(buf);
-            buf = b;
-        }
-    fclose(f);
+    size_t n = 0;
+    int e = 0;
+    char *buf = sx_slurp(path, &n, &e);
     if (!buf) {
-        snprintf(err, errlen, "%s: error: out of memory\n", path);
+        if (e == ENOMEM)
+            snprintf(err, errlen, "%s: error: out of memory\n", path);
+        else
+            snprintf(err, errlen, "%s: error: cannot read: %s\n", path, strerror(e));
         return NULL;
     }
     cx_complex *K = cx_parse(path, buf, n, name, err, errlen);

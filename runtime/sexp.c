@@ -726,9 +726,7 @@ sx_doc *sx_parse(const char *path, const char *text, size_t len, char *err, size
     return d;
 }
 
-/* The whole file into a malloc'ed buffer; NULL with *e = errno if it
- * cannot be read. */
-static char *slurp(const char *path, size_t *len, int *e)
+char *sx_slurp(const char *path, size_t *len, int *e)
 {
     FILE *f = fopen(path, "rb");
     if (!f) {
@@ -738,7 +736,7 @@ static char *slurp(const char *path, size_t *len, int *e)
     size_t cap = 0, n = 0;
     char *buf = NULL;
     for (;;) {
-        if (n == cap) {
+        if (n + 1 >= cap) { /* room for the bytes and a NUL after them */
             char *b = cap > SIZE_MAX / 2 ? NULL : SX_REALLOC(buf, cap ? 2 * cap : 4096);
             if (!b) {
                 *e = ENOMEM;
@@ -759,6 +757,7 @@ static char *slurp(const char *path, size_t *len, int *e)
         SX_FREE(buf);
         return NULL;
     }
+    buf[n] = '\0';
     *len = n;
     return buf;
 }
@@ -769,7 +768,7 @@ sx_doc *sx_read_file(const char *path, char *err, size_t errlen)
     size_t len = 0;
     int e = 0;
     errno = 0;
-    char *text = slurp(path, &len, &e);
+    char *text = sx_slurp(path, &len, &e);
     if (!text) {
         if (e == ENOMEM)
             file_error(path, err, errlen, "out of memory");

@@ -80,6 +80,11 @@ SX_HIDDEN sx_doc *sx_parse(const char *path, const char *text, size_t len, char 
  * "PATH: error: cannot read: <strerror>\n".  Allocates; not real-time safe. */
 SX_HIDDEN sx_doc *sx_read_file(const char *path, char *err, size_t errlen);
 
+/* The whole file as a malloc'ed, NUL-terminated buffer of *len bytes
+ * (free it with free()); NULL with *err = an errno value (ENOMEM when
+ * memory ran out) if it cannot be read.  Allocates; not real-time safe. */
+SX_HIDDEN char *sx_slurp(const char *path, size_t *len, int *err);
+
 /* Frees the doc and every node and text of it.  NULL is ignored. */
 SX_HIDDEN void sx_free(sx_doc *d);
 

@@ -43,7 +43,6 @@ static double one_pole_db(double p, double w) {
     return -10 * log10(m2);
 }
 
-double space_air_fit_db(int n, double p, double f, double fs) { return n * one_pole_db(p, 2 * M_PI * f / fs); }
 
 /* The pole in [0, 1) whose attenuation at w is `db` (>= 0), by bisection. */
 static double pole_for(double db, double w) {

@@ -47,8 +47,6 @@ SPACE_HIDDEN double space_air_alpha(double f);
 #define SPACE_AIR_POLES 8
 SPACE_HIDDEN void space_air_fit(double d, double fs, int *n, double *p);
 
-/* Attenuation in dB of n poles p at f Hz. */
-SPACE_HIDDEN double space_air_fit_db(int n, double p, double f, double fs);
 
 /* A four-point Lagrange read of the delay line buf (mask + 1 samples, a
  * power of two) at fractional frame `at` (sample i at buf[i & mask]). */

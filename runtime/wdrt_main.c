@@ -18,6 +18,8 @@
  */
 #include "wdrt.h"
 
+#include "sexp.h"
+
 #include "cx.h"
 
 #include <dirent.h>
@@ -93,29 +95,12 @@ static void hash_bytes(hash *h, const void *p, size_t n) {
 }
 
 static char *read_all(const char *path, size_t *len) {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    size_t cap = 4096, n = 0;
-    char *buf = malloc(cap + 1);
-    size_t k;
-    while (buf && (k = fread(buf + n, 1, cap - n, f)) > 0) {
-        n += k;
-        if (n == cap) {
-            char *b2 = realloc(buf, cap * 2 + 1);
-            if (!b2)
-                free(buf);
-            buf = b2;
-            cap *= 2;
-        }
-    }
-    fclose(f);
-    if (buf) {
-        buf[n] = 0;
-        if (len)
-            *len = n;
-    }
-    return buf;
+    size_t n;
+    int e;
+    char *text = sx_slurp(path, len ? len : &n, &e);
+    if (!text)
+        errno = e;
+    return text;
 }
 
 /* Hashes a netlist and, depth first, the files its .include lines name. */
