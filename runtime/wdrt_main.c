@@ -21,6 +21,7 @@
 #include "sexp.h"
 
 #include "cx.h"
+#include "tt.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -44,6 +45,11 @@ static const char usage_text[] =
     "                             [--budget NS] [--nosleep] [--quiet]\n"
     "       wdrt complex FILE [--name LIST] [--start V] [--waves] [--tempo X]\n"
     "                     [--granular[=X]] [-o OUT.wav] [--rate HZ] [--quiet]\n"
+    "       wdrt tree FILE.tt|'(EXPR)' [-o OUT.wav] [--seconds S] [--rate HZ]\n"
+    "                     [--param NAME=VALUE]... [--print] [--quiet]\n"
+    "       wdrt evolve SEED.tt [--target T.wav] [--population N] [--generations G]\n"
+    "                     [--seed K] [-o DIR] ...   (wdrt evolve --help)\n"
+    "       wdrt dot SCENE.wds|FILE.tt [-o OUT.dot]\n"
     "       wdrt --help\n"
     "\n"
     "render   renders a scene (.wds) to a 32-bit float WAV (default: out/SCENE.wav);\n"
@@ -69,6 +75,19 @@ static const char usage_text[] =
     "  -o OUT.wav      where to write\n"
     "  --rate HZ       sample rate (default 48 kHz)\n"
     "  --quiet         no summary\n"
+    "\n"
+    "tree     renders a timbre tree: the last tree of a .tt file, or an expression given\n"
+    "         in parentheses (default: out/NAME.wav, out/tree.wav for an expression)\n"
+    "  --seconds S     length (default: until the tree has ended and rung down, at most\n"
+    "                  60 s; 4 s for a tree that never ends)\n"
+    "  --rate HZ       sample rate (default 48 kHz)\n"
+    "  --param P=V     sets a param of the tree (repeatable)\n"
+    "  --print         print the tree as read (uses expanded), and its program's size\n"
+    "  -o OUT.wav      where to write\n"
+    "  --quiet         no summary\n"
+    "\n"
+    "dot      writes the sound network of a scene, or a tree's expression, for Graphviz\n"
+    "         (default: to stdout): sources, trees, mix nodes, rooms and the listener\n"
     "\n"
     "exit status: 0 ok, 1 input error, 2 usage error, 3 toolchain or internal error\n";
 
@@ -553,6 +572,158 @@ static int cmd_complex(int argc, char **argv) {
     return status;
 }
 
+/* ---- tree ---- */
+
+/* out/NAME.wav for FILE = .../NAME.EXT, out/tree.wav for an expression */
+static char *tree_out(const char *file, int expr) {
+    return expr ? strcpy(malloc(16), "out/tree.wav") : complex_out(file);
+}
+
+/* Builds (through the cache) the voices the tree's voice nodes name. */
+static int tree_voices(tt_prog *P, const char *argv0, wdrt_voice_lib **libs) {
+    int nv = tt_prog_nvoices(P), status = 0;
+    *libs = calloc((size_t)nv + 1, sizeof **libs);
+    char err[4096];
+    for (int k = 0; k < nv && !status; k++)
+        if (!(status = cached_voice(tt_prog_voice_path(P, k), wdc_path(argv0), &(*libs)[k])) &&
+            tt_prog_bind_voice(P, k, (*libs)[k].cls, err, sizeof err)) {
+            fputs(err, stderr);
+            status = EXIT_INPUT;
+        }
+    return status;
+}
+
+static int cmd_tree(int argc, char **argv) {
+    const char *file = NULL, *out = NULL;
+    double seconds = 0, rate = 48000;
+    int quiet = 0, print = 0, np = 0;
+    char *pn[TT_MAX_PARAMS];
+    double pv[TT_MAX_PARAMS];
+    for (int i = 2; i < argc; i++) {
+        const char *a = argv[i];
+        if (!strcmp(a, "-o")) {
+            if (i + 1 >= argc)
+                usage_error("-o needs a file name");
+            out = argv[++i];
+        } else if (!strcmp(a, "--seconds")) {
+            seconds = take_number(argc, argv, &i);
+            if (seconds > 86400)
+                usage_error("--seconds: at most a day");
+        } else if (!strcmp(a, "--rate")) {
+            rate = take_number(argc, argv, &i);
+            if (rate < 1000 || rate > 768000)
+                usage_error("--rate lies between 1000 and 768000 Hz");
+        } else if (!strcmp(a, "--param")) {
+            if (i + 1 >= argc)
+                usage_error("--param needs NAME=VALUE");
+            char *eq = strchr(argv[++i], '='), *end;
+            if (!eq || eq == argv[i])
+                usage_error("--param takes NAME=VALUE, not '%s'", argv[i]);
+            if (np == TT_MAX_PARAMS)
+                usage_error("too many --param");
+            pv[np] = strtod(eq + 1, &end);
+            if (*end || end == eq + 1 || !isfinite(pv[np]))
+                usage_error("--param %s: '%s' is not a number", argv[i], eq + 1);
+            *eq = 0;
+            pn[np++] = argv[i];
+        } else if (!strcmp(a, "--quiet")) {
+            quiet = 1;
+        } else if (!strcmp(a, "--print")) {
+            print = 1;
+        } else if (a[0] == '-' && a[1] && a[1] != '(' ) {
+            usage_error("unknown option '%s'", a);
+        } else if (file) {
+            usage_error("one tree at a time ('%s' and '%s')", file, a);
+        } else {
+            file = a;
+        }
+    }
+    if (!file)
+        usage_error("tree needs a .tt file or an expression in parentheses");
+    char err[4096];
+    int expr = file[strspn(file, " \t\n")] == '(';
+    tt_file *F = expr ? tt_file_from_string(file, err, sizeof err) : tt_file_read(file, NULL, 0, err, sizeof err);
+    if (!F) {
+        fputs(err, stderr);
+        return EXIT_INPUT;
+    }
+    const tt_tree *t = tt_file_tree(F, -1);
+    double *params = calloc((size_t)t->nparams + 1, sizeof *params);
+    for (int k = 0; k < t->nparams; k++)
+        params[k] = t->pdef[k];
+    int status = 0;
+    for (int j = 0; j < np && !status; j++) {
+        int k = -1;
+        for (int q = 0; q < t->nparams; q++)
+            if (!strcmp(t->pname[q], pn[j]))
+                k = q;
+        if (k < 0) {
+            fprintf(stderr, "wdrt: error: the tree has no param '%s'\n", pn[j]);
+            status = EXIT_USAGE;
+        } else {
+            params[k] = pv[j] < t->pmin[k] ? t->pmin[k] : pv[j] > t->pmax[k] ? t->pmax[k] : pv[j];
+        }
+    }
+    tt_prog *P = status ? NULL : tt_compile(t, err, sizeof err);
+    if (!status && !P) {
+        fputs(err, stderr);
+        status = EXIT_INPUT;
+    }
+    wdrt_voice_lib *libs = NULL;
+    if (!status)
+        status = tree_voices(P, argv[0], &libs);
+    if (!status && print) {
+        tt_print_tree(stdout, t);
+        printf("; %d nodes, depth %d, %d instructions\n", tt_node_count(t->root), tt_node_depth(t->root),
+               tt_prog_ninstr(P));
+    }
+    double end = P ? tt_prog_end(P) : HUGE_VAL;
+    int trim = seconds <= 0 && isfinite(end); /* rendered to 60 s, cut once rung down */
+    if (seconds <= 0)
+        seconds = isfinite(end) ? 60 : 4;
+    long n = (long)llround(seconds * rate);
+    double *y = status ? NULL : malloc(sizeof *y * (size_t)(n > 0 ? n : 1));
+    if (!status && (!y || tt_render(P, rate, params, y, n, err, sizeof err))) {
+        fputs(y ? err : "wdrt: error: out of memory\n", stderr);
+        status = EXIT_TOOL;
+    }
+    if (!status && trim) { /* after its end, until 100 dB below its peak, and 0.1 s more */
+        double pk = 0;
+        long last = 0, from = (long)llround(end * rate);
+        for (long i = 0; i < n; i++)
+            pk = fmax(pk, fabs(y[i]));
+        for (long i = 0; i < n; i++)
+            if (fabs(y[i]) > 1e-5 * pk)
+                last = i;
+        last = (last > from ? last : from) + (long)llround(0.1 * rate);
+        n = last < n ? last : n;
+    }
+    char *def = out ? NULL : tree_out(file, expr);
+    const char *path = out ? out : def;
+    if (!status && !out)
+        mkdir_p("out");
+    if (!status && wdrt_wav_write(path, 1, rate, y, n) != WDRT_OK) {
+        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+        status = EXIT_USAGE;
+    }
+    if (!status && !quiet) {
+        double pk = 0;
+        for (long i = 0; i < n; i++)
+            pk = fmax(pk, fabs(y[i]));
+        fprintf(stderr, "wdrt: wrote %s: %.2f s at %.0f Hz, peak %.1f dBFS\n", path, n / rate, rate,
+                pk > 0 ? 20 * log10(pk) : -400.0);
+    }
+    free(def);
+    free(y);
+    free(params);
+    tt_prog_free(P);
+    for (int k = 0; libs && P && k < tt_prog_nvoices(P); k++)
+        wdrt_voice_close(&libs[k]);
+    free(libs);
+    tt_file_free(F);
+    return status;
+}
+
 int main(int argc, char **argv) {
     if (argc < 2)
         usage_error("no command");
@@ -564,6 +735,8 @@ int main(int argc, char **argv) {
         return cmd_render(argc, argv);
     if (!strcmp(argv[1], "complex"))
         return cmd_complex(argc, argv);
+    if (!strcmp(argv[1], "tree"))
+        return cmd_tree(argc, argv);
     usage_error("unknown command '%s'", argv[1]);
     return EXIT_USAGE;
 }
