@@ -20,16 +20,18 @@
 
 #include "cx.h"
 #include "sexp.h"
+#include "tt.h"
 
 #define MAX_PLAY_SETS 32
 #define LAST_RING_S 120.0 /* a scene without length ends at the latest this long after its last event */
 
-enum { SE_STRIKE, SE_SET, SE_GAIN, SE_PLAY, SE_STOP };
+enum { SE_STRIKE, SE_SET, SE_GAIN, SE_PLAY, SE_STOP, SE_IMPACT };
 
 /* A number, or a curve over scene time: (curve (T V) (T V) ...). */
 typedef struct scnum {
     double v;
-    const sx *curve; /* the (curve ...) list, or NULL */
+    const sx *curve;  /* the (curve ...) list, or NULL */
+    const sx *motion; /* a motion binding such as (speed OBJ), or NULL */
 } scnum;
 
 typedef struct scparam {
@@ -56,6 +58,12 @@ typedef struct scvoice {
     scparam *params;
     int nparams;
     const wdv_class *cls;
+    /* a timbre tree (section "trees"): its tree, program and the names of
+     * its params until a class is made at the render's rate */
+    tt_tree *tree;
+    tt_prog *prog;
+    wdv_class stub;
+    wdv_param *stub_params;
 } scvoice;
 
 typedef struct scpair {
@@ -78,6 +86,9 @@ typedef struct scevent {
     int priority;        /* SE_PLAY */
     scpair *pairs;       /* SE_STRIKE, SE_PLAY */
     int npairs;
+    const sx *hitter;    /* SE_IMPACT: the object that strikes */
+    double impulse;      /* SE_IMPACT: N s, or < 0: from the mass and the path */
+    double mass;         /* SE_IMPACT: kg */
 } scevent;
 
 struct wdrt_scene {
@@ -103,6 +114,10 @@ struct wdrt_scene {
     char *sofa;          /* its HRTF file, or NULL: the default */
     char *err;           /* where readers write their error */
     size_t errlen;
+    tt_file *tdefs;      /* tree definitions: (include ...) and lib/ */
+    struct scnl { int vi, k; } *nl; /* what needs a netlist's class: a voice (k < 0)
+                            or voice node k of the program of tree vi */
+    int nnl;
 };
 
 /* ---- small helpers ---- */
@@ -218,9 +233,39 @@ static double curve_at(const sx *c, double t) {
     return v0;
 }
 
-/* value = number | curve */
+static const char *const motions[] = {"speed", "distance", "travel", "impulse", "x", "y", "z"};
+#define NMOTIONS 7
+
+/* motion = '(' ( 'speed' | 'travel' | 'x' | 'y' | 'z' ) OBJ ')' | '(' 'distance' OBJ OBJ ')'
+ *        | '(' 'impulse' ')'     OBJ: an object with a position, or listener */
+static int motion(wdrt_scene *S, const sx *x) {
+    int k = -1;
+    for (int i = 0; i < NMOTIONS; i++)
+        if (sx_is(x->head, motions[i]))
+            k = i;
+    int want = k == 1 ? 3 : k == 3 ? 1 : 2;
+    if (x->len != want)
+        return ERR(x, "expected %s", k == 1 ? "(distance A B)" : k == 3 ? "(impulse)" : "(MOTION OBJECT)");
+    for (const sx *o = x->head->next; o; o = o->next)
+        if (o->kind != SX_SYM)
+            return ERR(o, "expected the name of an object, found a %s", kind_of(o));
+    return 0;
+}
+
+/* value = number | curve | motion */
 static int value(wdrt_scene *S, const sx *x, scnum *v, int curves) {
     v->curve = NULL;
+    v->motion = NULL;
+    if (x && x->kind == SX_LIST && x->head && x->head->kind == SX_SYM && !sx_is(x->head, "curve")) {
+        for (int i = 0; i < NMOTIONS; i++)
+            if (sx_is(x->head, motions[i])) {
+                if (motion(S, x))
+                    return -1;
+                v->motion = x;
+                v->v = 0;
+                return 0;
+            }
+    }
     if (x && x->kind == SX_LIST && sx_is(x->head, "curve")) {
         if (!curves)
             return ERR(x, "a curve is not allowed here");
@@ -680,6 +725,84 @@ static int f_voice(wdrt_scene *S, const sx *f) {
     return 0;
 }
 
+/* ---- trees ----
+ *
+ * A tree is heard like a voice (it is one of S->voices, with no netlist):
+ * its expression is read and compiled when the scene loads, and made a
+ * class at the render's rate.  Inline expressions name their params with
+ * (param P V); a (use NAME ...) or a "file.tt" brings its own.  Voice nodes
+ * of a tree need classes the host builds: they are entries of S->nl. */
+
+/* include = '(' 'include' STRING ')'   tree definitions */
+static int f_include(wdrt_scene *S, const sx *f) {
+    return tt_file_add_form(&S->tdefs, S->doc, f, S->dir, S->err, S->errlen);
+}
+
+static int add_nl(wdrt_scene *S, int vi, int k) {
+    S->nl = grow(S->nl, S->nnl, sizeof *S->nl);
+    S->nl[S->nnl].vi = vi, S->nl[S->nnl].k = k;
+    S->nnl++;
+    return 0;
+}
+
+/* tree = '(' 'tree' NAME ( expr | '(' 'use' ... ')' | STRING ) property* ')' */
+static int f_tree(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 3, -1, "(tree NAME EXPR ...)"))
+        return -1;
+    const sx *n = f->head->next, *x = n->next;
+    if (n->kind != SX_SYM)
+        return ERR(n, "expected the name of the tree, found a %s", kind_of(n));
+    if (voice_index(S, n->text) >= 0 || complex_index(S, n->text) >= 0 || !strcmp(n->text, "listener"))
+        return ERR(n, "'%s' is already in the scene", n->text);
+    S->voices = grow(S->voices, S->nvoices, sizeof *S->voices);
+    int vi = S->nvoices;
+    scvoice *v = &S->voices[S->nvoices++];
+    memset(v, 0, sizeof *v);
+    v->name = n->text;
+    v->at = n;
+    v->gain = 1;
+    v->quiet = 1e-5;
+    v->hold = 0.1;
+    for (const sx *p = x->next; p; p = p->next)
+        if (voice_prop(S, v, p))
+            return -1;
+    int inl = !(x->kind == SX_STR || (x->kind == SX_LIST && sx_is(x->head, "use")));
+    const char *names[TT_MAX_PARAMS];
+    double defs[TT_MAX_PARAMS];
+    int np = 0;
+    if (inl)
+        for (int k = 0; k < v->nparams; k++) {
+            for (int j = 0; j < np; j++)
+                if (!strcmp(names[j], v->params[k].name))
+                    return ERR(v->params[k].at, "param '%s' given twice", names[j]);
+            if (np == TT_MAX_PARAMS)
+                return ERR(v->params[k].at, "a tree has at most %d params", TT_MAX_PARAMS);
+            names[np] = v->params[k].name;
+            defs[np++] = v->params[k].val.curve ? curve_at(v->params[k].val.curve, 0) : v->params[k].val.v;
+        }
+    if (!(v->tree = tt_tree_inline(S->tdefs, S->doc, x, S->dir, inl ? np : 0, names, defs, S->err, S->errlen)))
+        return -1;
+    char err[1024];
+    if (!(v->prog = tt_compile(v->tree, err, sizeof err))) {
+        snprintf(S->err, S->errlen, "%s", err);
+        return -1;
+    }
+    const tt_tree *t = v->tree;
+    v->stub_params = xcalloc((size_t)t->nparams + 1, sizeof *v->stub_params);
+    for (int k = 0; k < t->nparams; k++)
+        v->stub_params[k] = (wdv_param){t->pname[k], "", t->pdef[k], t->pmin[k], t->pmax[k], 0};
+    v->stub.name = v->name;
+    v->stub.n_params = t->nparams;
+    v->stub.params = v->stub_params;
+    v->stub.n_outputs = 1;
+    static const wdv_port out[1] = {{"out", ""}};
+    v->stub.outputs = out;
+    v->cls = &v->stub;
+    for (int k = 0; k < tt_prog_nvoices(v->prog); k++)
+        add_nl(S, vi, k);
+    return 0;
+}
+
 /* ---- complexes ----
  *
  * A complex (cx.h) is heard as a source of its own: its file is read
@@ -905,10 +1028,41 @@ static int play(wdrt_scene *S, const sx *f, scevent *e) {
     return 0;
 }
 
+/* impact = '(' 'impact' A B ( '(' 'impulse' J ')' | '(' 'mass' M ')' ) ')'
+ *   B: a tree with a pool, played with its (impulse)-bound params at J; with
+ *   a mass, J = M |v+ - v-| from A's path around the time */
+static int impact(wdrt_scene *S, const sx *f, scevent *e) {
+    const sx *a = f->head->next, *b = a ? a->next : NULL;
+    if (!a || !b || a->kind != SX_SYM)
+        return ERR(a ? a : f, "expected (impact A B (impulse J)) or (impact A B (mass M))");
+    e->hitter = a;
+    if (voice_ref(S, b, &e->voice))
+        return -1;
+    if (!S->voices[e->voice].tree || !S->voices[e->voice].pool)
+        return ERR(b, "'%s' is not a tree with a (pool N): an impact plays a note of one", b->text);
+    e->impulse = -1;
+    for (const sx *p = b->next; p; p = p->next) {
+        if (p->kind != SX_LIST || p->len != 2 || !(sx_is(p->head, "impulse") || sx_is(p->head, "mass")))
+            return ERR(p, "expected (impulse J) or (mass M)");
+        double x;
+        if (number(S, p->head->next, &x))
+            return -1;
+        if (!(x >= 0 && x < 1e9))
+            return ERR(p->head->next, "expected a positive number");
+        if (sx_is(p->head, "impulse"))
+            e->impulse = x;
+        else
+            e->mass = x;
+    }
+    if (e->impulse < 0 && !(e->mass > 0))
+        return ERR(f, "an impact needs its (impulse J) or the (mass M) of what strikes");
+    return 0;
+}
+
 /* event = '(' 'strike' VOICE pair+ ')' | '(' 'set' NAME PARAM value ')'
- *       | '(' 'gain' NAME value ')' | play | '(' 'stop' NAME ')' */
+ *       | '(' 'gain' NAME value ')' | play | '(' 'stop' NAME ')' | impact */
 static int event(wdrt_scene *S, const sx *f, double t, scevent *e) {
-    static const char *const kinds[] = {"strike", "set", "gain", "play", "stop"};
+    static const char *const kinds[] = {"strike", "set", "gain", "play", "stop", "impact"};
     memset(e, 0, sizeof *e);
     e->time = t;
     e->at = f;
@@ -916,11 +1070,13 @@ static int event(wdrt_scene *S, const sx *f, double t, scevent *e) {
     if (f->kind != SX_LIST || !f->head || f->head->kind != SX_SYM)
         return ERR(f, "expected an event: (strike ...), (set ...), (gain ...), (play ...) or (stop ...)");
     e->kind = -1;
-    for (int i = 0; i < 5; i++)
+    for (int i = 0; i < 6; i++)
         if (sx_is(f->head, kinds[i]))
             e->kind = i;
     if (e->kind < 0)
-        return unknown(S, f->head, "event", f->head->text, kinds, 5);
+        return unknown(S, f->head, "event", f->head->text, kinds, 6);
+    if (e->kind == SE_IMPACT)
+        return impact(S, f, e);
     if (f->len < 2)
         return ERR(f, "expected the voice the event is for");
     if (voice_ref(S, f->head->next, &e->voice))
@@ -980,7 +1136,7 @@ static const form forms[] = {
     {"rate", f_rate},   {"length", f_length}, {"output", f_output}, {"budget", f_budget},
     {"sleep", f_sleep}, {"voice", f_voice},   {"at", f_at},       {"c", f_c},
     {"distance", f_distance}, {"air", f_air}, {"listener", f_listener}, {"wall", f_wall}, {"sources", f_sources},
-    {"room", f_room},     {"complex", f_complex},
+    {"room", f_room},     {"complex", f_complex}, {"tree", f_tree}, {"include", f_include},
 };
 #define NFORMS ((int)(sizeof forms / sizeof *forms))
 
@@ -995,6 +1151,9 @@ static int read_form(wdrt_scene *S, const sx *f) {
         names[i] = forms[i].name;
     return unknown(S, f->head, "form", f->head->text, names, NFORMS);
 }
+
+static int bind_voice(wdrt_scene *S, int i, const wdv_class *cls);
+static int check_motions(wdrt_scene *S);
 
 static int cmp_event(const void *a, const void *b) {
     const scevent *x = a, *y = b;
@@ -1027,6 +1186,18 @@ wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err, siz
             wdrt_scene_free(S);
             return WDRT_SYNTAX;
         }
+    for (int i = 0; i < S->nvoices; i++)
+        if (S->voices[i].tree && bind_voice(S, i, S->voices[i].cls)) {
+            wdrt_scene_free(S);
+            return WDRT_SYNTAX;
+        }
+    for (int i = 0; i < S->nvoices; i++)
+        if (!S->voices[i].tree)
+            add_nl(S, i, -1);
+    if (check_motions(S)) {
+        wdrt_scene_free(S);
+        return WDRT_SYNTAX;
+    }
     if (S->nev > 1)
         qsort(S->ev, (size_t)S->nev, sizeof *S->ev, cmp_event);
     *scene = S;
@@ -1039,7 +1210,12 @@ void wdrt_scene_free(wdrt_scene *S) {
     for (int i = 0; i < S->nvoices; i++) {
         free(S->voices[i].netlist);
         free(S->voices[i].params);
+        tt_prog_free(S->voices[i].prog);
+        tt_tree_free(S->voices[i].tree);
+        free(S->voices[i].stub_params);
     }
+    tt_file_free(S->tdefs);
+    free(S->nl);
     for (int i = 0; i < S->nev; i++) {
         free(S->ev[i].sets);
         free(S->ev[i].pairs);
@@ -1057,12 +1233,19 @@ void wdrt_scene_free(wdrt_scene *S) {
     free(S);
 }
 
-int wdrt_scene_nvoices(const wdrt_scene *s) { return s ? s->nvoices : 0; }
+/* The host sees the netlists the scene needs: its voices' and those of
+ * voice nodes of its trees (S->nl). */
+int wdrt_scene_nvoices(const wdrt_scene *s) { return s ? s->nnl : 0; }
 const char *wdrt_scene_voice_name(const wdrt_scene *s, int i) {
-    return s && i >= 0 && i < s->nvoices ? s->voices[i].name : NULL;
+    if (!s || i < 0 || i >= s->nnl)
+        return NULL;
+    return s->voices[s->nl[i].vi].name;
 }
 const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i) {
-    return s && i >= 0 && i < s->nvoices ? s->voices[i].netlist : NULL;
+    if (!s || i < 0 || i >= s->nnl)
+        return NULL;
+    const scvoice *v = &s->voices[s->nl[i].vi];
+    return s->nl[i].k < 0 ? v->netlist : tt_prog_voice_path(v->prog, s->nl[i].k);
 }
 
 /* ---- binding classes ---- */
@@ -1102,9 +1285,17 @@ static int bind_pairs(wdrt_scene *S, const wdv_class *cls, scevent *e) {
 }
 
 wdrt_result wdrt_scene_bind(wdrt_scene *S, int i, const wdv_class *cls, char *err, size_t errlen) {
-    if (!S || i < 0 || i >= S->nvoices || !cls)
+    if (!S || i < 0 || i >= S->nnl || !cls)
         return WDRT_INVALID_ARGS;
     S->err = err, S->errlen = errlen;
+    if (S->nl[i].k >= 0) {
+        scvoice *v = &S->voices[S->nl[i].vi];
+        return tt_prog_bind_voice(v->prog, S->nl[i].k, cls, err, errlen) ? WDRT_SYNTAX : WDRT_OK;
+    }
+    return bind_voice(S, S->nl[i].vi, cls) ? WDRT_SYNTAX : WDRT_OK;
+}
+
+static int bind_voice(wdrt_scene *S, int i, const wdv_class *cls) {
     scvoice *v = &S->voices[i];
     v->cls = cls;
     if (cls->n_outputs == 0)
@@ -1142,6 +1333,285 @@ wdrt_result wdrt_scene_bind(wdrt_scene *S, int i, const wdv_class *cls, char *er
     return WDRT_OK;
 }
 
+/* ---- motion ---- */
+
+typedef struct objref {
+    double p[3];
+    const sx *path; /* or NULL: at p */
+} objref;
+
+/* Where the object `name` is: 0, or 1 if it has no position, -1 if there
+ * is no such object. */
+static int find_obj(const wdrt_scene *S, const char *name, objref *o) {
+    if (!strcmp(name, "listener")) {
+        memcpy(o->p, S->lis, sizeof o->p);
+        o->path = S->lis_path;
+        return 0;
+    }
+    int i = voice_index(S, name);
+    if (i >= 0) {
+        memcpy(o->p, S->voices[i].pos, sizeof o->p);
+        o->path = S->voices[i].path;
+        return S->voices[i].placed ? 0 : 1;
+    }
+    if ((i = complex_index(S, name)) >= 0) {
+        memcpy(o->p, S->cx[i].pos, sizeof o->p);
+        o->path = S->cx[i].path;
+        return S->cx[i].placed ? 0 : 1;
+    }
+    return -1;
+}
+
+static void obj_at(const objref *o, double t, double p[3]) {
+    if (o->path)
+        path_at(o->path, t, p);
+    else
+        memcpy(p, o->p, sizeof o->p);
+}
+
+/* Metres along a path from its start to time t. */
+static double travel(const objref *o, double t) {
+    if (!o->path)
+        return 0;
+    double d = 0, a[3], b[3];
+    const sx *k = o->path->head->next;
+    path_at(o->path, k->head->num, a);
+    for (k = k->next; k; k = k->next) {
+        double tk = k->head->num;
+        path_at(o->path, tk < t ? tk : t, b);
+        d += sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
+        memcpy(a, b, sizeof a);
+        if (tk >= t)
+            break;
+    }
+    return d;
+}
+
+static double dist3(const double a[3], const double b[3]) {
+    return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+/* Velocity of o just before (dir -1) or after (dir 1) time t, m/s. */
+static void velocity(const objref *o, double t, int dir, double v[3]) {
+    const double h = 1e-4;
+    double a[3], b[3], t0 = dir < 0 ? t - h : t, t1 = dir < 0 ? t : t + h;
+    if (t0 < 0)
+        t0 = 0, t1 = h;
+    obj_at(o, t0, a);
+    obj_at(o, t1, b);
+    for (int j = 0; j < 3; j++)
+        v[j] = (b[j] - a[j]) / (t1 - t0);
+}
+
+/* The value of a motion binding at scene time t; J: the impulse of the
+ * impact that plays the note (0 otherwise). */
+static double motion_at(const wdrt_scene *S, const sx *m, double t, double J) {
+    const sx *a = m->head->next;
+    objref A, B;
+    double p[3], q[3], v0[3], v1[3];
+    if (sx_is(m->head, "impulse"))
+        return J;
+    find_obj(S, a->text, &A);
+    if (sx_is(m->head, "distance")) {
+        find_obj(S, a->next->text, &B);
+        obj_at(&A, t, p);
+        obj_at(&B, t, q);
+        return dist3(p, q);
+    }
+    if (sx_is(m->head, "speed")) {
+        velocity(&A, t, 1, v1);
+        velocity(&A, t, -1, v0);
+        double z[3] = {0, 0, 0};
+        return 0.5 * (dist3(v0, z) + dist3(v1, z));
+    }
+    if (sx_is(m->head, "travel"))
+        return travel(&A, t);
+    obj_at(&A, t, p);
+    return p[sx_is(m->head, "x") ? 0 : sx_is(m->head, "y") ? 1 : 2];
+}
+
+/* The impulse of an impact: given, or the mass times the jump in the
+ * hitter's velocity at the time. */
+static double impact_impulse(const wdrt_scene *S, const scevent *x) {
+    if (x->impulse >= 0)
+        return x->impulse;
+    objref A;
+    double v0[3], v1[3];
+    find_obj(S, x->hitter->text, &A);
+    velocity(&A, x->time, -1, v0);
+    velocity(&A, x->time, 1, v1);
+    return x->mass * dist3(v0, v1);
+}
+
+static int check_motion(wdrt_scene *S, const scnum *v) {
+    if (!v->motion)
+        return 0;
+    for (const sx *o = v->motion->head->next; o; o = o->next) {
+        objref r;
+        int k = find_obj(S, o->text, &r);
+        if (k > 0)
+            return ERR(o, "'%s' has no position: give it (pos ...)", o->text);
+        if (k < 0) {
+            const char **names = xcalloc((size_t)(S->nvoices + S->ncx) + 1, sizeof *names);
+            int n = 0;
+            names[n++] = "listener";
+            for (int i = 0; i < S->nvoices; i++)
+                names[n++] = S->voices[i].name;
+            for (int i = 0; i < S->ncx; i++)
+                names[n++] = S->cx[i].name;
+            int r2 = unknown(S, o, "object", o->text, names, n);
+            free(names);
+            return r2;
+        }
+    }
+    return 0;
+}
+
+static int check_motions(wdrt_scene *S) {
+    for (int i = 0; i < S->nvoices; i++)
+        for (int k = 0; k < S->voices[i].nparams; k++)
+            if (check_motion(S, &S->voices[i].params[k].val))
+                return -1;
+    for (int i = 0; i < S->nev; i++) {
+        scevent *e = &S->ev[i];
+        if (check_motion(S, &e->set.val))
+            return -1;
+        for (int j = 0; j < e->nsets; j++)
+            if (check_motion(S, &e->sets[j].val))
+                return -1;
+        if (e->kind == SE_IMPACT) {
+            objref r;
+            int k = find_obj(S, e->hitter->text, &r);
+            if (k < 0)
+                return ERR(e->hitter, "unknown object '%s'", e->hitter->text);
+            if (k != 0 && e->impulse < 0)
+                return ERR(e->hitter, "'%s' is not an object with a position: its impulse cannot come from its path",
+                           e->hitter->text);
+        }
+    }
+    return 0;
+}
+
+/* ---- schematic ---- */
+
+static void dot_label(FILE *f, const char *s) {
+    for (; *s; s++)
+        if (*s == '"' || *s == '\\')
+            fputc('\\', f), fputc(*s, f);
+        else
+            fputc(*s, f);
+}
+
+/* The node an object is drawn as (trees: their root). */
+static void obj_node(const wdrt_scene *S, const char *name, char *out, size_t n) {
+    int i = voice_index(S, name);
+    if (!strcmp(name, "listener"))
+        snprintf(out, n, "listener");
+    else if (i >= 0 && S->voices[i].tree)
+        snprintf(out, n, "t%d_0", i);
+    else if (i >= 0)
+        snprintf(out, n, "v%d", i);
+    else
+        snprintf(out, n, "c%d", complex_index(S, name));
+}
+
+void wdrt_scene_dot(const wdrt_scene *S, FILE *f) {
+    fputs("digraph scene {\n  rankdir=LR;\n  compound=true;\n  node [fontname=\"Helvetica\" fontsize=11];\n"
+          "  edge [fontname=\"Helvetica\" fontsize=9];\n",
+          f);
+    fprintf(f, "  listener [shape=doublecircle style=filled fillcolor=\"#f4cccc\" label=\"listener\\n%s\"];\n",
+            S->channels == 1 ? "mono" : S->binaural ? "binaural" : "stereo");
+    int placed = 0, direct = 0;
+    for (int i = 0; i < S->nvoices; i++)
+        placed |= S->voices[i].placed, direct |= !S->voices[i].placed;
+    for (int i = 0; i < S->ncx; i++)
+        placed |= S->cx[i].placed, direct |= !S->cx[i].placed;
+    if (placed) {
+        fprintf(f, "  space [shape=box style=\"rounded,filled\" fillcolor=\"#ead1dc\" label=\"propagation\\n"
+                   "delay (Doppler), distance%s%s\"];\n",
+                S->sp.air ? ", air" : "", S->nwalls ? ", walls" : "");
+        fputs("  space -> listener;\n", f);
+    }
+    if (direct) {
+        fputs("  mix [shape=circle label=\"+\"];\n  mix -> listener;\n", f);
+    }
+    for (int r = 0; r < S->nrooms; r++) {
+        fprintf(f, "  room%d [shape=box3d style=filled fillcolor=\"#d0e0e3\" label=\"room %d\\nT60 %.2g / %.2g s\\n"
+                   "%d reflections\"];\n  space -> room%d;\n  room%d -> listener;\n",
+                r, r + 1, S->rooms[r].t60_low, S->rooms[r].t60_high, S->rooms[r].order, r, r);
+    }
+    for (int w = 0; w < S->nwalls; w++)
+        fprintf(f, "  wall%d [shape=note label=\"wall\\n%.3g dB\"];\n  wall%d -> space [style=dotted arrowhead=tee];\n",
+                w, S->walls[w].loss_db, w);
+    for (int i = 0; i < S->nvoices; i++) {
+        const scvoice *v = &S->voices[i];
+        char root[64];
+        if (v->tree) {
+            char prefix[32];
+            snprintf(prefix, sizeof prefix, "t%d_", i);
+            fprintf(f, "  subgraph cluster_t%d {\n  label=\"", i);
+            dot_label(f, v->name);
+            if (v->pool)
+                fprintf(f, " (tree, %d notes)", v->pool);
+            else
+                fputs(" (tree)", f);
+            fputs("\";\n  style=rounded;\n", f);
+            tt_dot(f, v->tree->root, prefix, root);
+            fputs("  }\n", f);
+        } else {
+            snprintf(root, sizeof root, "v%d", i);
+            const char *b = strrchr(v->netlist, '/');
+            fprintf(f, "  %s [shape=box style=filled fillcolor=\"#cfe2f3\" label=\"", root);
+            dot_label(f, v->name);
+            fputs("\\n", f);
+            dot_label(f, b ? b + 1 : v->netlist);
+            if (v->pool)
+                fprintf(f, "\\n%d notes", v->pool);
+            fputs("\"];\n", f);
+        }
+        fprintf(f, "  %s -> %s [label=\"gain %.3g\"];\n", root, v->placed ? "space" : "mix", v->gain);
+        for (int k = 0; k < v->nparams; k++) {
+            const sx *m = v->params[k].val.motion;
+            if (!m)
+                continue;
+            for (const sx *o = m->head->next; o; o = o->next) {
+                char from[64];
+                obj_node(S, o->text, from, sizeof from);
+                if (!strcmp(from, root))
+                    continue;
+                fprintf(f, "  %s -> %s [style=dashed color=\"#999999\" label=\"%s: %s\"];\n", from, root,
+                        v->params[k].name, m->head->text);
+            }
+        }
+    }
+    for (int i = 0; i < S->ncx; i++) {
+        fprintf(f, "  c%d [shape=component style=filled fillcolor=\"#fff2cc\" label=\"", i);
+        dot_label(f, S->cx[i].name);
+        fprintf(f, "\\ncomplex\"];\n  c%d -> %s;\n", i, S->cx[i].placed ? "space" : "mix");
+    }
+    /* what the timeline does to each object */
+    for (int i = 0; i < S->nvoices; i++) {
+        int n[6] = {0};
+        for (int k = 0; k < S->nev; k++)
+            if (S->ev[k].voice == i)
+                n[S->ev[k].kind]++;
+        if (!(n[SE_PLAY] + n[SE_IMPACT] + n[SE_STRIKE] + n[SE_SET]))
+            continue;
+        char root[64];
+        obj_node(S, S->voices[i].name, root, sizeof root);
+        fprintf(f, "  ev%d [shape=cds style=filled fillcolor=\"#eeeeee\" label=\"", i);
+        const char *sep = "";
+        static const char *const what[] = {"strikes", "sets", "gains", "plays", "stops", "impacts"};
+        for (int k = 0; k < 6; k++)
+            if (n[k]) {
+                fprintf(f, "%s%d %s", sep, n[k], what[k]);
+                sep = "\\n";
+            }
+        fprintf(f, "\"];\n  ev%d -> %s [style=dashed];\n", i, root);
+    }
+    fputs("}\n", f);
+}
+
 /* ---- rendering ---- */
 
 /* A curve that drives a param or a gain during the render. */
@@ -1154,6 +1624,7 @@ typedef struct drive {
     int param;      /* DRIVE_GAIN, DRIVE_MOVE, DRIVE_LISTEN, or the param */
     uint64_t next;  /* the next grid frame it posts at */
     uint64_t end;   /* the frame after which it has posted its last value */
+    int motion;     /* curve is a motion binding */
 } drive;
 
 typedef struct render {
@@ -1166,6 +1637,7 @@ typedef struct render {
     int ei;          /* next scene event to post */
     int si;          /* a play posted in parts: 0, or 1 + the sets posted */
     wdrt_voice note; /* the note that play made */
+    tt_class *tc;    /* the trees' classes, at the render's rate */
 } render;
 
 static uint64_t frame_of(double t, double fs) { return (uint64_t)llround(t * fs); }
@@ -1187,6 +1659,38 @@ static void add_drive(render *R, const sx *c, double offset, wdrt_voice v, int p
     d->end = frame_of(offset + (moves ? path_end(c) : curve_end(c)), R->fs) + (uint64_t)R->B;
 }
 
+/* A param that follows a motion: posted every block while anything it
+ * reads moves. */
+static void add_motion_drive(render *R, const sx *m, wdrt_voice v, int param) {
+    R->dr = grow(R->dr, R->ndr, sizeof *R->dr);
+    drive *d = &R->dr[R->ndr++];
+    memset(d, 0, sizeof *d);
+    d->curve = m, d->v = v, d->param = param, d->motion = 1;
+    double end = 0;
+    for (const sx *o = m->head->next; o; o = o->next) {
+        objref r;
+        if (find_obj(R->S, o->text, &r) == 0 && r.path)
+            end = fmax(end, path_end(r.path));
+    }
+    d->next = 0;
+    d->end = frame_of(end, R->fs) + (uint64_t)R->B;
+}
+
+/* The motion-bound params of voice vi, set on a note played at t. */
+static int motion_sets(const wdrt_scene *S, int vi) {
+    int n = 0;
+    for (int k = 0; k < S->voices[vi].nparams; k++)
+        n += S->voices[vi].params[k].val.motion != NULL;
+    return n;
+}
+
+static const scparam *motion_set(const wdrt_scene *S, int vi, int j) {
+    for (int k = 0; k < S->voices[vi].nparams; k++)
+        if (S->voices[vi].params[k].val.motion && j-- == 0)
+            return &S->voices[vi].params[k];
+    return NULL;
+}
+
 /* Posts one scene event; a play goes in parts (the play, its sets, its
  * strike), all at its frame. */
 static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
@@ -1204,6 +1708,8 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
             add_drive(R, x->set.val.curve, x->time, v, x->set.id);
             return WDRT_OK;
         }
+        if (x->set.val.motion)
+            return wdrt_engine_set(e, f, v, x->set.id, motion_at(R->S, x->set.val.motion, x->time, 0));
         return wdrt_engine_set(e, f, v, x->set.id, x->set.val.v);
     case SE_GAIN:
         if (x->set.val.curve) {
@@ -1213,6 +1719,7 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
         return wdrt_engine_gain(e, f, v, x->set.val.v);
     case SE_STOP:
         return wdrt_engine_stop(e, f, v);
+    case SE_IMPACT:
     case SE_PLAY: {
         wdrt_result r;
         if (R->si == 0) {
@@ -1220,9 +1727,15 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
                 return r;
             R->si = 1;
         }
-        for (; R->si <= x->nsets; R->si++)
-            if ((r = wdrt_engine_set(e, f, R->note, x->sets[R->si - 1].id, x->sets[R->si - 1].val.v)) != WDRT_OK)
+        /* the play's own sets, then the params bound to motion, at the time */
+        double J = x->kind == SE_IMPACT ? impact_impulse(R->S, x) : 0;
+        int nm = motion_sets(R->S, x->voice);
+        for (; R->si <= x->nsets + nm; R->si++) {
+            const scparam *q = R->si <= x->nsets ? &x->sets[R->si - 1] : motion_set(R->S, x->voice, R->si - 1 - x->nsets);
+            double val = q->val.motion ? motion_at(R->S, q->val.motion, x->time, J) : q->val.v;
+            if ((r = wdrt_engine_set(e, f, R->note, q->id, val)) != WDRT_OK)
                 return r;
+        }
         if (x->npairs && (r = wdrt_engine_strike(e, f, R->note, x->npairs, ids, vals)) != WDRT_OK)
             return r;
         R->si = 0;
@@ -1256,7 +1769,7 @@ static uint64_t post_due(render *R, uint64_t now, uint64_t until) {
                 r = d->param == DRIVE_MOVE ? wdrt_engine_move(R->e, d->next, d->v, p)
                                            : wdrt_engine_listen(R->e, d->next, p, NULL);
             } else {
-                double x = curve_at(d->curve, t);
+                double x = d->motion ? motion_at(R->S, d->curve, t, 0) : curve_at(d->curve, t);
                 r = d->param == DRIVE_GAIN ? wdrt_engine_gain(R->e, d->next, d->v, x)
                                            : wdrt_engine_set(R->e, d->next, d->v, d->param, x);
             }
@@ -1273,11 +1786,23 @@ static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o
     memset(R, 0, sizeof *R);
     R->S = S;
     R->fs = o && o->rate > 0 ? o->rate : S->rate;
+    R->tc = xcalloc((size_t)S->nvoices + 1, sizeof *R->tc);
     for (int i = 0; i < S->nvoices; i++) {
         const scvoice *v = &S->voices[i];
         if (!v->cls)
             return -1;
-        pc[i] = wdrt_pool_config_init(v->cls, v->pool ? v->pool : 1);
+        if (v->tree) {
+            char err[1024];
+            if (tt_class_init(&R->tc[i], v->prog, R->fs, err, sizeof err)) {
+                fputs(err, stderr);
+                return -1;
+            }
+        }
+        pc[i] = wdrt_pool_config_init(v->tree ? &R->tc[i].cls : v->cls, v->pool ? v->pool : 1);
+        if (v->tree) {
+            pc[i].bind = tt_class_bind;
+            pc[i].data = &R->tc[i];
+        }
         pc[i].owned = !v->pool;
         pc[i].output = v->output;
         pc[i].gain = v->gain_curve ? curve_at(v->gain_curve, 0) : v->gain;
@@ -1293,7 +1818,9 @@ static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o
         for (int k = 0; k < v->cls->n_params; k++)
             pv[i][k] = v->cls->params[k].def;
         for (int k = 0; k < v->nparams; k++)
-            pv[i][v->params[k].id] = v->params[k].val.curve ? curve_at(v->params[k].val.curve, 0) : v->params[k].val.v;
+            pv[i][v->params[k].id] = v->params[k].val.curve    ? curve_at(v->params[k].val.curve, 0)
+                                     : v->params[k].val.motion ? motion_at(S, v->params[k].val.motion, 0, 0)
+                                                               : v->params[k].val.v;
         pc[i].params = pv[i];
     }
     return 0;
@@ -1306,6 +1833,8 @@ static void add_voice_drives(render *R) {
         for (int k = 0; k < v->nparams; k++)
             if (v->params[k].val.curve)
                 add_drive(R, v->params[k].val.curve, 0, handle(R, i), v->params[k].id);
+            else if (v->params[k].val.motion && !v->pool)
+                add_motion_drive(R, v->params[k].val.motion, handle(R, i), v->params[k].id);
         if (v->gain_curve)
             add_drive(R, v->gain_curve, 0, handle(R, i), DRIVE_GAIN);
         if (v->path)
@@ -1444,5 +1973,8 @@ done:
     free(pc);
     free(srcs);
     free(R.dr);
+    for (int i = 0; R.tc && i < S->nvoices; i++)
+        tt_class_uninit(&R.tc[i]);
+    free(R.tc);
     return res;
 }

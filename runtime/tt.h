@@ -162,6 +162,11 @@ TT_HIDDEN void tt_print(FILE *f, const tt_node *x);
 /* A whole definition: (tree NAME (params (P DEFAULT)...) EXPR). */
 TT_HIDDEN void tt_print_tree(FILE *f, const tt_tree *t);
 
+/* Writes the tree's nodes and edges as Graphviz statements (no graph
+ * header): node names start with `prefix`; returns the root's name in
+ * root (at least 64 bytes). */
+TT_HIDDEN void tt_dot(FILE *f, const tt_node *x, const char *prefix, char *root);
+
 TT_HIDDEN tt_tree *tt_tree_clone(const tt_tree *t);
 TT_HIDDEN void tt_tree_free(tt_tree *t);
 

@@ -343,6 +343,70 @@ void tt_print_tree(FILE *f, const tt_tree *t) {
     fputs(")\n", f);
 }
 
+/* ---- schematics ---- */
+
+static void dot_node(FILE *f, const tt_node *x, const char *prefix, int *id, char *name) {
+    snprintf(name, 64, "%s%d", prefix, (*id)++);
+    char kids[64];
+    switch (x->op) {
+    case TT_NUM:
+        fprintf(f, "  %s [shape=plaintext label=\"", name);
+        print_num(f, x->v);
+        fputs("\"];\n", f);
+        return;
+    case TT_PARAM:
+        fprintf(f, "  %s [shape=invhouse style=filled fillcolor=\"#fff2cc\" label=\"%s\"];\n", name, x->s ? x->s : "?");
+        return;
+    case TT_T:
+    case TT_FS:
+        fprintf(f, "  %s [shape=plaintext label=\"%s\"];\n", name, x->op == TT_T ? "t" : "fs");
+        return;
+    default:
+        break;
+    }
+    int mix = x->op >= TT_IMPORTANCE;
+    const char *fill = mix ? "#d9ead3" : x->op == TT_VOICE ? "#cfe2f3" : (tt_ops[x->op].flags & TT_F_STATE) ? "#fce5cd" : "#ffffff";
+    fprintf(f, "  %s [shape=%s style=filled fillcolor=\"%s\" label=\"%s", name, mix || x->op == TT_VOICE ? "box" : "ellipse", fill,
+            tt_ops[x->op].name);
+    if (x->op == TT_OSC && (int)x->v != TT_SHAPE_SINE)
+        fprintf(f, " %s", shapes[(int)x->v & 3]);
+    if (x->op == TT_RVECTOR)
+        fprintf(f, " %d", (int)x->v);
+    if ((x->op == TT_SAMPLE || x->op == TT_VOICE) && x->s) {
+        const char *b = strrchr(x->s, '/');
+        fputs("\\n", f);
+        for (const char *c = b ? b + 1 : x->s; *c; c++)
+            if (*c != '"' && *c != '\\')
+                fputc(*c, f);
+    }
+    if (x->op == TT_ENV)
+        fprintf(f, " (%d keys)", x->nk / 2);
+    if (x->width > 1)
+        fprintf(f, "\\n[%d]", x->width);
+    fputs("\"];\n", f);
+    int first = x->op == TT_INVIMPORTANCE ? 2 : 0;
+    for (int i = 0; i < x->n; i++) {
+        dot_node(f, x->a[i], prefix, id, kids);
+        const char *lab = "";
+        char b[80];
+        if ((x->op == TT_IMPORTANCE || x->op == TT_INVIMPORTANCE) && i >= first) {
+            int e = (i - first) / 2;
+            snprintf(b, sizeof b, "%s%d%s", (i - first) % 2 ? "w" : "x", e + 1,
+                     (i - first) % 2 && e < x->nk && x->k[e] != 0 ? " lock" : "");
+            lab = b;
+        } else if (x->op == TT_VOICE && i >= x->nin) {
+            snprintf(b, sizeof b, "%s", x->pn[i - x->nin]);
+            lab = b;
+        }
+        fprintf(f, "  %s -> %s [label=\"%s\"];\n", kids, name, lab);
+    }
+}
+
+void tt_dot(FILE *f, const tt_node *x, const char *prefix, char *root) {
+    int id = 0;
+    dot_node(f, x, prefix, &id, root);
+}
+
 /* ---- trees ---- */
 
 void tt_tree_free(tt_tree *t) {

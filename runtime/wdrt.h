@@ -35,6 +35,7 @@
 #define WDRT_H
 
 #include <stddef.h>
+#include <stdio.h>
 #include <stdint.h>
 
 #include "wdvoice.h"
@@ -338,6 +339,12 @@ const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i);
  * names for it (WDRT_SYNTAX with the position in err). */
 wdrt_result wdrt_scene_bind(wdrt_scene *s, int i, const wdv_class *cls,
                             char *err, size_t errlen);
+
+/* Writes the scene's sound network as a Graphviz digraph: its sources
+ * (voices, trees with their expressions and mix nodes, complexes), the
+ * events that play them, the rooms and walls they are heard through and
+ * the listener.  Not real-time safe. */
+void wdrt_scene_dot(const wdrt_scene *s, FILE *f);
 
 /* Overrides of the scene's own settings for wdrt_scene_render; zero
  * fields keep the scene's. */

@@ -724,6 +724,65 @@ static int cmd_tree(int argc, char **argv) {
     return status;
 }
 
+/* ---- dot ---- */
+
+static int cmd_dot(int argc, char **argv) {
+    const char *file = NULL, *out = NULL;
+    for (int i = 2; i < argc; i++) {
+        if (!strcmp(argv[i], "-o")) {
+            if (i + 1 >= argc)
+                usage_error("-o needs a file name");
+            out = argv[++i];
+        } else if (argv[i][0] == '-' && argv[i][1]) {
+            usage_error("unknown option '%s'", argv[i]);
+        } else if (file) {
+            usage_error("one file at a time ('%s' and '%s')", file, argv[i]);
+        } else {
+            file = argv[i];
+        }
+    }
+    if (!file)
+        usage_error("dot needs a scene (.wds) or a tree (.tt, or an expression in parentheses)");
+    char err[4096];
+    size_t n = strlen(file);
+    int tree = file[0] == '(' || (n > 3 && !strcmp(file + n - 3, ".tt"));
+    FILE *f = out ? fopen(out, "w") : stdout;
+    if (!f) {
+        fprintf(stderr, "wdrt: error: cannot write '%s': %s\n", out, strerror(errno));
+        return EXIT_USAGE;
+    }
+    int status = 0;
+    if (tree) {
+        tt_file *F = file[0] == '(' ? tt_file_from_string(file, err, sizeof err) : tt_file_read(file, NULL, 0, err, sizeof err);
+        if (!F) {
+            fputs(err, stderr);
+            status = EXIT_INPUT;
+        } else {
+            char root[64];
+            fputs("digraph tree {\n  rankdir=LR;\n  node [fontname=\"Helvetica\" fontsize=11];\n"
+                  "  edge [fontname=\"Helvetica\" fontsize=9];\n",
+                  f);
+            tt_dot(f, tt_file_tree(F, -1)->root, "n", root);
+            fprintf(f, "  out [shape=doublecircle label=\"out\"];\n  %s -> out;\n}\n", root);
+            tt_file_free(F);
+        }
+    } else {
+        wdrt_scene *s;
+        if (wdrt_scene_load(file, &s, err, sizeof err) != WDRT_OK) {
+            fputs(err, stderr);
+            status = EXIT_INPUT;
+        } else {
+            wdrt_scene_dot(s, f);
+            wdrt_scene_free(s);
+        }
+    }
+    if (out && fclose(f) != 0 && !status) {
+        fprintf(stderr, "wdrt: error: cannot write '%s'\n", out);
+        status = EXIT_USAGE;
+    }
+    return status;
+}
+
 int main(int argc, char **argv) {
     if (argc < 2)
         usage_error("no command");
@@ -737,6 +796,8 @@ int main(int argc, char **argv) {
         return cmd_complex(argc, argv);
     if (!strcmp(argv[1], "tree"))
         return cmd_tree(argc, argv);
+    if (!strcmp(argv[1], "dot"))
+        return cmd_dot(argc, argv);
     usage_error("unknown command '%s'", argv[1]);
     return EXIT_USAGE;
 }
