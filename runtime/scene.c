@@ -1186,8 +1186,8 @@ wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err, siz
             wdrt_scene_free(S);
             return WDRT_SYNTAX;
         }
-    for (int i = 0; i < S->nvoices; i++)
-        if (S->voices[i].tree && bind_voice(S, i, S->voices[i].cls)) {
+    for (int i = 0; i < S->nvoices; i++) /* the array has moved as it grew: point at the stubs again */
+        if (S->voices[i].tree && bind_voice(S, i, S->voices[i].cls = &S->voices[i].stub)) {
             wdrt_scene_free(S);
             return WDRT_SYNTAX;
         }
