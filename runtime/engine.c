@@ -375,6 +375,8 @@ static wdrt_result check_config(const wdrt_engine_config *c) {
         const wdrt_pool_config *p = &c->pools[i];
         if (p->placed && (sp->sources <= 0 || !isfinite(p->pos[0] + p->pos[1] + p->pos[2])))
             return WDRT_INVALID_ARGS;
+        if (p->ambient && (p->placed || sp->sources <= 0 || p->ambient < 0 || p->ambient > sp->nrooms))
+            return WDRT_INVALID_ARGS;
         if (!p->cls || p->cls->abi_version != WDV_ABI_VERSION || p->voices < 1 || p->voices > (int)(SEQ_MASK / 2) ||
             p->spares < 0 || p->spares > 64 || p->output < 0 || p->output >= p->cls->n_outputs ||
             !isfinite(p->gain) || !(p->pan >= -1 && p->pan <= 1) || !(p->cost_ns >= 0) || !(p->quiet >= 0) ||
@@ -1254,6 +1256,8 @@ static void feed_segment(wdrt_engine *e, inst *v, const double *y, int a, int b,
         q->fed = t0 + (uint64_t)b;
 }
 
+static double room_heard(const wdrt_engine *e, const room *r);
+
 static void mix_segment(wdrt_engine *e, inst *v, int a, int b, uint64_t t0) {
     const pool *p = &e->pools[v->pool];
     const double *y = e->obuf + (size_t)p->cfg.output * (size_t)e->B;
@@ -1261,9 +1265,15 @@ static void mix_segment(wdrt_engine *e, inst *v, int a, int b, uint64_t t0) {
         feed_segment(e, v, y, a, b, t0);
         return;
     }
-    double *m = e->mix, pk = v->peak;
-    for (int n = a; n < b; n++) {
-        double x = envelope(v) * y[n];
+    double *m = e->mix, pk = v->peak, h = 1, dh = 0;
+    if (p->cfg.ambient) { /* heard as its room's reverb is, along the same ramp */
+        const room *r = &e->rooms[p->cfg.ambient - 1];
+        double h1 = room_heard(e, r);
+        dh = (h1 - r->heard) / e->B;
+        h = r->heard + dh * (a + 1);
+    }
+    for (int n = a; n < b; n++, h += dh) {
+        double x = h * envelope(v) * y[n];
         pk = fabs(x) > pk ? fabs(x) : pk;
         if (e->nch == 1)
             m[n] += x;
@@ -1653,15 +1663,20 @@ static double outside(const wdrt_engine *e, const room *r, const double *c) {
            pow(10, -wall_loss(e, e->lis, c) / 20);
 }
 
+/* How much of a room's reverb (and ambience) the listener hears now. */
+static double room_heard(const wdrt_engine *e, const room *r) {
+    const double *b = r->cfg.box;
+    double c[3] = {(b[0] + b[3]) / 2, (b[1] + b[4]) / 2, (b[2] + b[5]) / 2};
+    return room_contains(&r->cfg, e->lis) ? 1 : outside(e, r, c);
+}
+
 /* The reverb of every room, fed by the sources in it this block and heard
  * fully inside it, and from outside as outside() says. */
 static void reverb(wdrt_engine *e, int nb) {
     e->s.rooms = 0;
     for (int i = 0; i < e->nrooms; i++) {
         room *r = &e->rooms[i];
-        const double *b = r->cfg.box;
-        double c[3] = {(b[0] + b[3]) / 2, (b[1] + b[4]) / 2, (b[2] + b[5]) / 2};
-        r->heard_to = room_contains(&r->cfg, e->lis) ? 1 : outside(e, r, c);
+        r->heard_to = room_heard(e, r);
         if (!r->fed && r->asleep) {
             r->heard = r->heard_to;
             continue;

@@ -64,6 +64,8 @@ typedef struct scvoice {
     tt_prog *prog;
     wdv_class stub;
     wdv_param *stub_params;
+    int ambient;       /* 0, or 1 + the room it is the ambience of */
+    char *ownname;     /* a name made here (an ambience's), freed with the scene */
 } scvoice;
 
 typedef struct scpair {
@@ -554,11 +556,13 @@ static int f_wall(wdrt_scene *S, const sx *f) {
     return 0;
 }
 
+static int make_tree(wdrt_scene *S, const sx *n, const char *name, const sx *x);
+
 /* room = '(' 'room' NAME '(' 'box' X0 Y0 Z0 X1 Y1 Z1 ')' '(' 't60' LOW HIGH ')'
  *        [ '(' 'reflections' ORDER ')' ] ')'
  *   LOW: T60 in s at and below 500 Hz, HIGH: at and above 4 kHz */
 static int f_room(wdrt_scene *S, const sx *f) {
-    if (arity(S, f, 4, 6, "(room NAME (box X0 Y0 Z0 X1 Y1 Z1) (t60 LOW HIGH) [(reflections ORDER)])"))
+    if (arity(S, f, 4, 7, "(room NAME (box X0 Y0 Z0 X1 Y1 Z1) (t60 LOW HIGH) [(reflections ORDER)] [(ambient TREE)])"))
         return -1;
     if (f->head->next->kind != SX_SYM)
         return ERR(f->head->next, "expected the name of the room, found a %s", kind_of(f->head->next));
@@ -568,8 +572,28 @@ static int f_room(wdrt_scene *S, const sx *f) {
     r->order = 1;
     int have = 0;
     for (const sx *p = f->head->next->next; p; p = p->next) {
-        if (p->kind == SX_LIST && sx_is(p->head, "ambient"))
-            return ERR(p, "an ambient tree needs timbre trees, which this build does not have");
+        if (p->kind == SX_LIST && sx_is(p->head, "ambient")) {
+            /* (ambient EXPR property...): a standing tree heard as the room's reverb is */
+            if (p->len < 2)
+                return ERR(p, "expected (ambient TREE ...)");
+            char *name = xcalloc(strlen(f->head->next->text) + 16, 1);
+            sprintf(name, "%s.ambient", f->head->next->text);
+            int ri = S->nrooms;
+            if (make_tree(S, p, name, p->head->next)) {
+                if (S->nvoices && !S->voices[S->nvoices - 1].ownname && S->voices[S->nvoices - 1].name == name)
+                    S->voices[S->nvoices - 1].ownname = name;
+                else
+                    free(name);
+                return -1;
+            }
+            scvoice *v = &S->voices[S->nvoices - 1];
+            v->ownname = name;
+            v->ambient = ri;
+            if (v->placed || v->pool)
+                return ERR(p, "an ambience is heard throughout its room: no (pos ...) or (pool N)");
+            r = &S->rooms[S->nrooms - 1];
+            continue;
+        }
         int k = sx_is(p->head, "box") ? 0 : sx_is(p->head, "t60") ? 1 : sx_is(p->head, "reflections") ? 2 : -1;
         int len = k == 0 ? 7 : k == 1 ? 3 : 2;
         if (p->kind != SX_LIST || k < 0 || p->len != len)
@@ -745,20 +769,14 @@ static int add_nl(wdrt_scene *S, int vi, int k) {
     return 0;
 }
 
-/* tree = '(' 'tree' NAME ( expr | '(' 'use' ... ')' | STRING ) property* ')' */
-static int f_tree(wdrt_scene *S, const sx *f) {
-    if (arity(S, f, 3, -1, "(tree NAME EXPR ...)"))
-        return -1;
-    const sx *n = f->head->next, *x = n->next;
-    if (n->kind != SX_SYM)
-        return ERR(n, "expected the name of the tree, found a %s", kind_of(n));
-    if (voice_index(S, n->text) >= 0 || complex_index(S, n->text) >= 0 || !strcmp(n->text, "listener"))
-        return ERR(n, "'%s' is already in the scene", n->text);
+/* A tree named `name` (written at n) of expression x with the
+ * properties after it. */
+static int make_tree(wdrt_scene *S, const sx *n, const char *name, const sx *x) {
     S->voices = grow(S->voices, S->nvoices, sizeof *S->voices);
     int vi = S->nvoices;
     scvoice *v = &S->voices[S->nvoices++];
     memset(v, 0, sizeof *v);
-    v->name = n->text;
+    v->name = name;
     v->at = n;
     v->gain = 1;
     v->quiet = 1e-5;
@@ -801,6 +819,18 @@ static int f_tree(wdrt_scene *S, const sx *f) {
     for (int k = 0; k < tt_prog_nvoices(v->prog); k++)
         add_nl(S, vi, k);
     return 0;
+}
+
+/* tree = '(' 'tree' NAME ( expr | '(' 'use' ... ')' | STRING ) property* ')' */
+static int f_tree(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 3, -1, "(tree NAME EXPR ...)"))
+        return -1;
+    const sx *n = f->head->next;
+    if (n->kind != SX_SYM)
+        return ERR(n, "expected the name of the tree, found a %s", kind_of(n));
+    if (voice_index(S, n->text) >= 0 || complex_index(S, n->text) >= 0 || !strcmp(n->text, "listener"))
+        return ERR(n, "'%s' is already in the scene", n->text);
+    return make_tree(S, n, n->text, n->next);
 }
 
 /* ---- complexes ----
@@ -1211,6 +1241,7 @@ void wdrt_scene_free(wdrt_scene *S) {
         free(S->voices[i].netlist);
         free(S->voices[i].params);
         tt_prog_free(S->voices[i].prog);
+        free(S->voices[i].ownname);
         tt_tree_free(S->voices[i].tree);
         free(S->voices[i].stub_params);
     }
@@ -1813,6 +1844,7 @@ static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o
         pc[i].hold = v->hold;
         pc[i].virtualize = v->virtualize;
         pc[i].placed = v->placed;
+        pc[i].ambient = v->ambient;
         memcpy(pc[i].pos, v->pos, sizeof v->pos);
         pv[i] = xcalloc((size_t)v->cls->n_params + 1, sizeof(double));
         for (int k = 0; k < v->cls->n_params; k++)
@@ -1879,7 +1911,12 @@ static void space_config(const wdrt_scene *S, wdrt_space_config *sp) {
             n += S->voices[i].pool ? S->voices[i].pool : 1;
     for (int i = 0; i < S->ncx; i++)
         n += S->cx[i].placed;
+    int amb = 0;
+    for (int i = 0; i < S->nvoices; i++)
+        amb |= S->voices[i].ambient > 0;
     *sp = S->sp;
+    if (n == 0 && amb)
+        n = 1; /* rooms live in the spatial layer */
     sp->sources = n == 0 ? 0 : S->sources ? S->sources : n + 4 < 64 ? n + 4 : 64;
     memcpy(sp->listener, S->lis, sizeof S->lis);
     sp->walls = S->walls;

@@ -431,15 +431,22 @@ typedef struct lv {
     double t; /* LV_DEAD: silent after t; LV_DECAY: only decaying after t */
 } lv;
 
-static lv live(const tt_node *x) {
+static lv live(const tt_prog *P, const tt_node *x) {
     lv r = {LV_LIVE, HUGE_VAL}, a;
     switch (x->op) {
     case TT_NUM:
         return x->v == 0 ? (lv){LV_DEAD, 0} : r;
     case TT_ENV:
         return x->k[x->nk - 1] == 0 ? (lv){LV_DEAD, x->k[x->nk - 2]} : r;
-    case TT_SAMPLE:
-        return r; /* its length is known once read: see tt_compile */
+    case TT_SAMPLE: /* silent once its position has passed the file's end (and
+                     * the interpolator's reach, one frame) at a constant rate */
+        for (int i = 0; i < P->nsamples; i++)
+            if (!strcmp(P->samples[i].path, x->s)) {
+                double rate = x->n == 0 ? 1 : x->a[0]->op == TT_NUM ? x->a[0]->v : -1;
+                if (rate > 0)
+                    return (lv){LV_DEAD, ((double)P->samples[i].n + 1) / (P->samples[i].fs * rate)};
+            }
+        return r;
     case TT_DAMP:
     case TT_EXP:
         /* exp(-(s t + o)) with s a positive constant decays */
@@ -467,7 +474,7 @@ static lv live(const tt_node *x) {
         lv best = {LV_LIVE, HUGE_VAL};
         int n = x->op == TT_DIV ? 1 : x->n;
         for (int i = 0; i < n; i++) {
-            a = live(x->a[i]);
+            a = live(P, x->a[i]);
             if (a.k == LV_DEAD && (best.k != LV_DEAD || a.t < best.t))
                 best = a;
             else if (a.k == LV_DECAY && best.k == LV_LIVE)
@@ -496,7 +503,7 @@ static lv live(const tt_node *x) {
                     : x->n;
         lv acc = {LV_DEAD, 0};
         for (int i = first; i < n; i += step) {
-            a = live(x->a[i]);
+            a = live(P, x->a[i]);
             if (a.k > acc.k)
                 acc.k = a.k;
             if (a.t > acc.t)
@@ -514,7 +521,7 @@ static lv live(const tt_node *x) {
         return acc;
     }
     case TT_ENERGETIC:
-        a = live(x->a[0]);
+        a = live(P, x->a[0]);
         if (a.k != LV_LIVE && x->a[1]->op == TT_NUM && x->a[1]->v > 0) {
             a.t = a.t / x->a[1]->v + (double)SINC_H / 1000.0;
             return a;
@@ -573,15 +580,6 @@ static float *sinc_table(void) {
     return t;
 }
 
-static int has_op(const tt_node *x, int op) {
-    if ((int)x->op == op)
-        return 1;
-    for (int i = 0; i < x->n; i++)
-        if (has_op(x->a[i], op))
-            return 1;
-    return 0;
-}
-
 tt_prog *tt_compile(const tt_tree *t, char *err, size_t errlen) {
     tt_prog *P = calloc(1, sizeof *P);
     cc c = {P, 0, NULL, 0, err, errlen, 0};
@@ -616,10 +614,8 @@ tt_prog *tt_compile(const tt_tree *t, char *err, size_t errlen) {
     for (int i = 0; i < P->nins; i++)
         if (P->ins[i].k == TT_ENERGETIC && !P->sinc && !(P->sinc = sinc_table()))
             goto oom;
-    lv l = live(P->tree->root);
+    lv l = live(P, P->tree->root);
     P->live_until = l.k == LV_LIVE ? HUGE_VAL : l.t;
-    if (has_op(P->tree->root, TT_SAMPLE) || has_op(P->tree->root, TT_VOICE))
-        P->live_until = HUGE_VAL; /* their ends are not worked out: always live */
     return P;
 oom:
     free(c.freelist);

@@ -1566,7 +1566,10 @@ tt_file *tt_file_read(const char *path, const char *text, size_t len, char *err,
         return NULL;
     }
     if (F->ntrees == 0) {
-        sx_error(d, NULL, err, errlen, "no tree: write an expression or (tree NAME ...)");
+        int line = 1;
+        for (size_t i = 0; i < d->srclen; i++)
+            line += d->src[i] == '\n';
+        sx_error_at(d, line, 1, err, errlen, "no tree: write an expression or (tree NAME ...)");
         tt_file_free(F);
         return NULL;
     }

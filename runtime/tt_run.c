@@ -395,6 +395,20 @@ static double blep(double t, double dt) {
     return 0;
 }
 
+/* the residual of a band-limited corner whose slope changes by 2 per
+ * sample, t cycles after it (2-point polyBLAMP: the integral of blep) */
+static double blamp(double t, double dt) {
+    if (t < dt) {
+        t = t / dt - 1;
+        return -t * t * t / 3;
+    }
+    if (t > 1 - dt) {
+        t = (t - 1) / dt + 1;
+        return t * t * t / 3;
+    }
+    return 0;
+}
+
 static void k_osc(const ex *e, const tt_ins *I, void *S, int n) {
     int W = e->P->regs[I->dst].w, es, fs, shape = (int)I->v;
     double *d = reg(e, I->dst), *ph = S;
@@ -420,8 +434,10 @@ static void k_osc(const ex *e, const tt_ins *I, void *S, int n) {
             case TT_SHAPE_SQUARE:
                 y = (p < 0.5 ? 1 : -1) + (adt > 0 ? blep(p, adt) - blep(frac(p + 0.5), adt) : 0);
                 break;
-            default:
+            default: /* corners at 1/4 (slope -8 per cycle) and 3/4 (+8) */
                 y = 1 - 4 * fabs(frac(p + 0.25) - 0.5);
+                if (adt > 0)
+                    y += 4 * adt * (blamp(frac(p + 0.25), adt) - blamp(frac(p + 0.75), adt)); /* half the slope change (blamp: a step of 2) */
                 break;
             }
             d[k * TB + i] = y;

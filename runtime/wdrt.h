@@ -178,6 +178,11 @@ typedef struct wdrt_pool_config {
     const void *data;
     int placed;           /* 1: heard through the spatial layer */
     double pos[3];        /* m: where its voices start */
+    int ambient;          /* 0, or 1 + the index of a room of the space config:
+                             the pool (not placed) is that room's ambience,
+                             heard as its reverb is: fully inside the room,
+                             from outside at the distance to the room and
+                             through the walls between */
 } wdrt_pool_config;
 
 /* Defaults for a pool of `voices` instances of cls, played as notes.

@@ -215,6 +215,30 @@ static void test_scene_errors(void **st) {
     assert_non_null(strstr(err, "e.wds:2:14: error: unknown param 'q'"));
 }
 
+static void test_room_ambience(void **st) {
+    (void)st;
+    /* a constant ambience of 0.5 in a 10 m room; the listener walks out
+     * through the open side y = 10 at 2.5 m/s and on: inside it hears the
+     * ambience as it is, outside at the inverse distance to the room */
+    long n;
+    double *y = render("(length 4) (sleep off) (air off)\n"
+                       "(listener (pos (path (0 5 5 1.7) (4 5 15 1.7))))\n"
+                       "(room hall (box 0 0 0 10 10 4) (t60 0.5 0.4) (reflections 0)\n"
+                       "  (ambient (+ 0.5 (* 0 t))))\n",
+                       &n);
+    for (double t = 0.1; t < 1.9; t += 0.05)
+        assert_true(fabs(y[(long)(t * FS)] - 0.5) < 1e-12);
+    /* the gain follows the listener a block behind at most: 2.5 m/s for a block */
+    double worst = 0;
+    for (double t = 2.5; t < 3.95; t += 0.01) {
+        double d = 2.5 * (t - 2), want = 0.5 / d, step = 0.5 / (d * d) * 2.5 * 2 * BLOCK / FS;
+        worst = fmax(worst, fabs(y[(long)(t * FS)] - want) / step);
+    }
+    printf("ambience outside the room: worst %.3g of its bound\n", worst);
+    assert_true(worst <= 1);
+    free(y);
+}
+
 static void test_dot(void **st) {
     (void)st;
     const char *path = tl_write_file(g_dir, "d.wds",
@@ -250,7 +274,8 @@ int main(void) {
         cmocka_unit_test(test_distance_follows_path), cmocka_unit_test(test_speed_and_travel),
         cmocka_unit_test(test_coordinates),           cmocka_unit_test(test_impact_impulse_from_path),
         cmocka_unit_test(test_tree_from_definitions), cmocka_unit_test(test_pool_notes),
-        cmocka_unit_test(test_scene_errors),          cmocka_unit_test(test_dot),
+        cmocka_unit_test(test_scene_errors),          cmocka_unit_test(test_room_ambience),
+        cmocka_unit_test(test_dot),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
