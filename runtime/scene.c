@@ -164,22 +164,9 @@ static const char *nearest(const char *s, const char *const *names, int n) {
     int bd = 3;
     for (int i = 0; i < n; i++) {
         const char *t = names[i];
-        int ls = (int)strlen(s), lt = (int)strlen(t);
-        if (ls > 60 || lt > 60 || abs(ls - lt) >= bd)
-            continue;
-        int d[61][61];
-        for (int a = 0; a <= ls; a++)
-            d[a][0] = a;
-        for (int b = 0; b <= lt; b++)
-            d[0][b] = b;
-        for (int a = 1; a <= ls; a++)
-            for (int b = 1; b <= lt; b++) {
-                int c = d[a - 1][b - 1] + (s[a - 1] != t[b - 1]);
-                c = d[a - 1][b] + 1 < c ? d[a - 1][b] + 1 : c;
-                d[a][b] = d[a][b - 1] + 1 < c ? d[a][b - 1] + 1 : c;
-            }
-        if (d[ls][lt] < bd)
-            bd = d[ls][lt], best = t;
+        int d = sx_edit_distance(s, t);
+        if (d < bd)
+            bd = d, best = t;
     }
     return best;
 }

@@ -808,3 +808,21 @@ const char *sx_kind_name(sx_kind k)
     }
     return "?";
 }
+
+int sx_edit_distance(const char *s, const char *t) {
+    int ls = (int)strlen(s), lt = (int)strlen(t);
+    if (ls > 60 || lt > 60)
+        return 99;
+    int d[61][61];
+    for (int a = 0; a <= ls; a++)
+        d[a][0] = a;
+    for (int b = 0; b <= lt; b++)
+        d[0][b] = b;
+    for (int a = 1; a <= ls; a++)
+        for (int b = 1; b <= lt; b++) {
+            int c = d[a - 1][b - 1] + (s[a - 1] != t[b - 1]);
+            c = d[a - 1][b] + 1 < c ? d[a - 1][b] + 1 : c;
+            d[a][b] = d[a][b - 1] + 1 < c ? d[a][b - 1] + 1 : c;
+        }
+    return d[ls][lt];
+}

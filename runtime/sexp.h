@@ -99,6 +99,11 @@ SX_HIDDEN int sx_error(const sx_doc *d, const sx *at, char *err, size_t errlen,
 SX_HIDDEN int sx_error_at(const sx_doc *d, int line, int col, char *err, size_t errlen,
                           const char *fmt, ...) SX_PRINTF(6, 7);
 
+/* The edit distance (insertions, deletions, substitutions) between a and
+ * b, for "did you mean" suggestions; 99 for names over 60 bytes.  Does not
+ * allocate. */
+SX_HIDDEN int sx_edit_distance(const char *a, const char *b);
+
 /* x is the symbol sym (false for NULL x). */
 SX_HIDDEN int sx_is(const sx *x, const char *sym);
 /* The i-th element (from 0) of a list; NULL past the end, for i < 0, or

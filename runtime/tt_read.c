@@ -723,23 +723,6 @@ typedef struct rd {
 
 static const char *kind_of(const sx *x) { return x ? sx_kind_name(x->kind) : "nothing"; }
 
-static int edit_distance(const char *s, const char *t) {
-    int ls = (int)strlen(s), lt = (int)strlen(t);
-    if (ls > 60 || lt > 60)
-        return 99;
-    int d[61][61];
-    for (int a = 0; a <= ls; a++)
-        d[a][0] = a;
-    for (int b = 0; b <= lt; b++)
-        d[0][b] = b;
-    for (int a = 1; a <= ls; a++)
-        for (int b = 1; b <= lt; b++) {
-            int c = d[a - 1][b - 1] + (s[a - 1] != t[b - 1]);
-            c = d[a - 1][b] + 1 < c ? d[a - 1][b] + 1 : c;
-            d[a][b] = d[a][b - 1] + 1 < c ? d[a][b - 1] + 1 : c;
-        }
-    return d[ls][lt];
-}
 
 /* The nearest of the names known here (functions, params, defs) to s. */
 static const char *nearest(const rd *R, const char *s, int functions) {
@@ -747,7 +730,7 @@ static const char *nearest(const rd *R, const char *s, int functions) {
     int bd = 3;
 #define TRY(name)                                                                                                      \
     do {                                                                                                               \
-        int d_ = edit_distance(s, (name));                                                                             \
+        int d_ = sx_edit_distance(s, (name));                                                                             \
         if (d_ < bd)                                                                                                   \
             bd = d_, best = (name);                                                                                    \
     } while (0)
@@ -862,7 +845,7 @@ static int use_args(rd *R, const def *d, const sx *n, tt_node **given, int depth
             const char *near = NULL;
             int bd = 3;
             for (int i = 0; i < d->np; i++) {
-                int e = edit_distance(p->head->text, d->pn[i]);
+                int e = sx_edit_distance(p->head->text, d->pn[i]);
                 if (e < bd)
                     bd = e, near = d->pn[i];
             }
@@ -972,8 +955,8 @@ static tt_node *special(rd *R, const sx *x, tt_op op, int depth) {
                 const char *near = NULL;
                 int bd = 3;
                 for (int i = 0; s->kind == SX_SYM && i < 4; i++)
-                    if (edit_distance(s->text, shapes[i]) < bd)
-                        bd = edit_distance(s->text, shapes[i]), near = shapes[i];
+                    if (sx_edit_distance(s->text, shapes[i]) < bd)
+                        bd = sx_edit_distance(s->text, shapes[i]), near = shapes[i];
                 if (near)
                     RERR(R, s, "unknown shape '%s'; did you mean '%s'?", s->text, near);
                 else
