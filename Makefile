@@ -21,7 +21,7 @@ TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
 NETLISTS   = $(wildcard netlists/*.wdn)
 # tests built again under ThreadSanitizer, and under AddressSanitizer + UBSan
 TSAN_BINS  = build/tests/test_storm_tsan
-ASAN_BINS  = build/tests/test_engine_asan build/tests/test_scene_asan
+ASAN_BINS  = build/tests/test_engine_asan build/tests/test_scene_asan build/tests/test_tree_asan build/tests/test_treescene_asan
 
 all: bin/wdc bin/wdrt
 
@@ -108,12 +108,13 @@ build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h 
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
 	build/bench/rtbench
 	build/bench/spacebench
+	build/bench/treebench
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
@@ -124,6 +125,10 @@ build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) b
 # The engine's economy: sleeping voices, a 1000-voice scene, an 88-key piano.
 build/bench/rtbench: build/bench/rtbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lpthread
+
+# Timbre trees: the compiled program against the per-sample walk and hand C.
+build/bench/treebench: build/bench/treebench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 # The spatial layer's cost per moving source, against OpenAL Soft (libopenal-dev).
 build/bench/spacebench: build/bench/spacebench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
@@ -140,9 +145,10 @@ build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/b
 
 # Long fuzzing runs: the S-expression reader over 2 million mutated texts
 # (about a minute; WDRT_FUZZ_SEED=N picks another sequence).
-soak: build/tests/test_sexp build/tests/test_scene
+soak: build/tests/test_sexp build/tests/test_scene build/tests/test_tree
 	WDRT_FUZZ_ITERS=2000000 build/tests/test_sexp
 	WDRT_FUZZ_ITERS=200000 build/tests/test_scene
+	WDRT_FUZZ_ITERS=200000 build/tests/test_tree
 .PHONY: soak
 
 format:

@@ -326,6 +326,29 @@ static int comp(cc *c, const tt_node *x) {
         return P->fs_reg;
     case TT_T:
         return emit(c, TT_T, TT_AUDIO, 1, NULL, 0, x, 0);
+    case TT_COMBINE:
+    case TT_MUL: {
+        /* a mode: a sine of time times a decay of time, one decaying
+         * rotation; and the sum of such modes without storing each */
+        const tt_node *m = x->op == TT_COMBINE ? x->a[0] : x;
+        if (m->op == TT_MUL && m->n == 2) {
+            const tt_node *sn = m->a[0], *dm = m->a[1];
+            if (sn->op == TT_DAMP || sn->op == TT_EXP)
+                sn = x->a[1], dm = x->a[0];
+            if ((sn->op == TT_SINE || sn->op == TT_SIN) && (dm->op == TT_DAMP || dm->op == TT_EXP) &&
+                sn->a[0]->rate == TT_AUDIO && affine(sn->a[0]) && dm->a[0]->rate == TT_AUDIO && affine(dm->a[0])) {
+                int so[4];
+                affine_parts(c, sn->a[0], &so[0], &so[1]);
+                affine_parts(c, dm->a[0], &so[2], &so[3]);
+                int r = emit(c, x->op == TT_COMBINE ? K_MODESUM : K_DSINREC, TT_AUDIO, x->width, so, 4, x,
+                             sn->op == TT_SINE ? 1 : 1 / (2 * M_PI));
+                if (!c->oom)
+                    P->ins[P->nins - 1].v2 = dm->op == TT_DAMP ? -1 : 1;
+                return r;
+            }
+        }
+        break;
+    }
     case TT_SINE:
     case TT_SIN:
     case TT_COS:

@@ -24,6 +24,9 @@ enum {
     K_SINREC = TT_NOPS, /* sin(2 pi (s t + o)) by rotation: args s, o; v: cycles per unit (1 or 1/2pi) */
     K_COSREC,           /* cos(...) likewise */
     K_EXPREC,           /* exp(g (s t + o)) by multiplication: args s, o; v: g (-1 damp, 1 exp) */
+    K_DSINREC,          /* exp(g (s2 t + o2)) sin(2 pi v (s1 t + o1)): a decaying rotation;
+                           args s1, o1, s2, o2; v: cycles per unit, v2: g */
+    K_MODESUM,          /* the sum over elements of K_DSINREC: (combine (* (sine ..) (damp ..))) */
     K_COPY,             /* a register copied (a segment's output) */
     K_NKERNELS
 };
@@ -43,7 +46,7 @@ typedef struct tt_ins {
     int a[8];       /* argument registers (more in args: see ax) */
     int ax;         /* > 0: the arguments are prog->xargs[ax .. ax + na) */
     const tt_node *x;/* the node (its constants, names, keys); in the program's tree */
-    double v;       /* kernel constant */
+    double v, v2;   /* kernel constants */
     int child;      /* TT_ENERGETIC: the segment it replays */
     int data;       /* TT_SAMPLE: the sample; TT_VOICE: the voice */
     size_t st;      /* bytes of state it keeps (fixed by the class at its rate) */

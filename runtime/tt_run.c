@@ -135,10 +135,64 @@ void tt_importance(int n, const double *w, const double *locked, double *out) {
 
 static double frac(double x) { return x - floor(x); }
 
+/* sin(2 pi x) without a call: x folded to a quarter period, then the
+ * Taylor series of sin to u^21 (its remainder below 2e-18 there), so
+ * the result is within a few ulps of sin(2 pi frac(x)); branch-free, so
+ * loops over a block vectorize. */
+static inline double sin2pi(double x) {
+    double r = x - floor(x + 0.5);         /* [-1/2, 1/2) */
+    double a = fabs(r);
+    double f = a > 0.25 ? 0.5 - a : a;     /* sin(2 pi a) = sin(2 pi (1/2 - a)) */
+    double u = 6.283185307179586 * f, u2 = u * u;
+    double p = 1.9572941063391261e-20;     /* 1/21! */
+    p = p * u2 - 8.2206352466243297e-18;   /* -1/19! */
+    p = p * u2 + 2.8114572543455206e-15;   /* 1/17! */
+    p = p * u2 - 7.6471637318198164e-13;   /* -1/15! */
+    p = p * u2 + 1.6059043836821613e-10;   /* 1/13! */
+    p = p * u2 - 2.5052108385441720e-08;   /* -1/11! */
+    p = p * u2 + 2.7557319223985893e-06;   /* 1/9! */
+    p = p * u2 - 1.9841269841269841e-04;   /* -1/7! */
+    p = p * u2 + 8.3333333333333333e-03;   /* 1/5! */
+    p = p * u2 - 1.6666666666666667e-01;   /* -1/3! */
+    p = u + u * u2 * p;
+    return r < 0 ? -p : p;
+}
+
+/* exp(x) without a call where the result is a normal double: x = n ln 2
+ * + f with |f| <= ln2/2 (ln 2 in two parts, Cody and Waite), e^f by its
+ * Taylor series to f^13 (remainder below 5e-18), 2^n by the exponent's
+ * bits; elsewhere (and for NaN) the library's. */
+static inline double fexp(double x) {
+    if (!(x > -708 && x < 709))
+        return exp(x);
+    double n = floor(x * 1.4426950408889634 + 0.5);
+    double f = (x - n * 0.693145751953125) - n * 1.4286068203094173e-06;
+    double p = 1.6059043836821613e-10;     /* 1/13! */
+    p = p * f + 2.0876756987868099e-09;    /* 1/12! */
+    p = p * f + 2.5052108385441720e-08;
+    p = p * f + 2.7557319223985893e-07;
+    p = p * f + 2.7557319223985888e-06;
+    p = p * f + 2.4801587301587302e-05;
+    p = p * f + 1.9841269841269841e-04;
+    p = p * f + 1.3888888888888889e-03;
+    p = p * f + 8.3333333333333333e-03;
+    p = p * f + 4.1666666666666667e-02;
+    p = p * f + 1.6666666666666667e-01;
+    p = p * f + 0.5;
+    p = p * f + 1;
+    p = p * f + 1;
+    union {
+        double d;
+        uint64_t u;
+    } b;
+    b.u = (uint64_t)((int64_t)n + 1023) << 52;
+    return p * b.d;
+}
+
 static double wave(int op, double x) {
     switch (op) {
     case TT_SINE:
-        return sin(2 * M_PI * frac(x));
+        return sin2pi(x);
     case TT_SAW:
         return 2 * frac(x + 0.5) - 1;
     case TT_SQUARE:
@@ -151,7 +205,7 @@ static double wave(int op, double x) {
 static double math1(int op, double x) {
     switch (op) {
     case TT_EXP:
-        return exp(x);
+        return fexp(x);
     case TT_LOG:
         return log(x);
     case TT_SQRT:
@@ -167,7 +221,7 @@ static double math1(int op, double x) {
     case TT_TANH:
         return tanh(x);
     case TT_DAMP:
-        return exp(-x);
+        return fexp(-x);
     case TT_SUB:
         return -x;
     case TT_PNOISE:
@@ -216,7 +270,10 @@ static void k_math(const ex *e, const tt_ins *I, int n) {
         for (int k = 0; k < W; k++) {
             double *dk = d + k * des;
             const double *ak = a + k * aes;
-            if (afs)
+            if (afs && I->k == TT_SINE)
+                for (int i = 0; i < n; i++)
+                    dk[i] = sin2pi(ak[i]);
+            else if (afs)
                 for (int i = 0; i < n; i++)
                     dk[i] = fin(math1(I->k, ak[i]));
             else {
@@ -262,6 +319,14 @@ static void k_math(const ex *e, const tt_ins *I, int n) {
                 for (int i = 0; i < n; i++)
                     dk[i] = ak[0] * bk[0];
             continue;
+        case TT_POW:
+            if (!afs && bfs && ak[0] > 0 && isfinite(ak[0])) { /* a^b(t) = e^(b ln a), ln a once */
+                double la = log(ak[0]);
+                for (int i = 0; i < n; i++)
+                    dk[i] = fin(fexp(bk[i] * la));
+                continue;
+            }
+            /* fall through */
         default:
             for (int i = 0; i < n; i++)
                 dk[i] = fin(math2(I->k, ak[i * afs], bk[i * bfs]));
@@ -269,52 +334,108 @@ static void k_math(const ex *e, const tt_ins *I, int n) {
     }
 }
 
-/* sin/cos(2 pi v (s t + o)) and exp(v (s t + o)) by recurrences anchored
- * at the block's first frame */
+/* sin/cos(2 pi v (s t + o)), exp(v (s t + o)) and their products by
+ * recurrences anchored exactly at the block's first frame: a rotation
+ * (or a multiplication, or a decaying rotation) per sample.  Four
+ * elements advance side by side, so their chains overlap in the
+ * processor instead of waiting on each other. */
+#define RG 4
+
 static void k_rec(const ex *e, const tt_ins *I, int64_t f0, int n) {
-    int W = e->P->regs[I->dst].w;
+    int W = e->P->regs[I->dst].w, kind = I->k;
     double *d = reg(e, I->dst), t0 = (double)f0 / e->fs;
-    int ses, sfs, oes, ofs;
-    const double *s = reg(e, I->a[0]), *o = reg(e, I->a[1]);
-    strides(e, I->a[0], &ses, &sfs);
-    strides(e, I->a[1], &oes, &ofs);
-    for (int k = 0; k < W; k++) {
-        double *dk = d + k * TB, sk = s[k * ses], ok = o[k * oes];
-        if (I->k == K_EXPREC) {
-            double y = exp(I->v * (sk * t0 + ok)), r = exp(I->v * sk / e->fs);
-            if (!isfinite(y) || !isfinite(r)) {
-                for (int i = 0; i < n; i++)
-                    dk[i] = fin(exp(I->v * (sk * ((double)(f0 + i) / e->fs) + ok)));
-                continue;
+    const int *A = args_of(e->P, I);
+    int es[4], fs_[4];
+    const double *x[4] = {NULL, NULL, NULL, NULL};
+    for (int j = 0; j < I->na; j++) {
+        x[j] = reg(e, A[j]);
+        strides(e, A[j], &es[j], &fs_[j]);
+    }
+    for (int k0 = 0; k0 < W; k0 += RG) {
+        int m = W - k0 < RG ? W - k0 : RG;
+        double zr[RG], zi[RG], rr[RG], ri[RG];
+        for (int g = 0; g < RG; g++) {
+            int k = k0 + (g < m ? g : 0);
+            double s = x[0][k * es[0]], o = x[1][k * es[1]];
+            if (kind == K_EXPREC) {
+                double y = exp(I->v * (s * t0 + o)), r = exp(I->v * s / e->fs);
+                zr[g] = y, zi[g] = 0, rr[g] = r, ri[g] = 0;
+            } else {
+                double c0 = frac(I->v * (s * t0 + o)), dc = frac(I->v * s / e->fs);
+                zr[g] = cos(2 * M_PI * c0), zi[g] = sin(2 * M_PI * c0);
+                rr[g] = cos(2 * M_PI * dc), ri[g] = sin(2 * M_PI * dc);
+                if (kind == K_DSINREC) {
+                    double s2 = x[2][k * es[2]], o2 = x[3][k * es[3]];
+                    double a = exp(I->v2 * (s2 * t0 + o2)), q = exp(I->v2 * s2 / e->fs);
+                    zr[g] *= a, zi[g] *= a, rr[g] *= q, ri[g] *= q;
+                }
             }
-            for (int i = 0; i < n; i++) {
-                dk[i] = y;
-                y *= r;
-            }
-            continue;
+            if (!(isfinite(zr[g]) && isfinite(zi[g]) && isfinite(rr[g]) && isfinite(ri[g])))
+                zr[g] = zi[g] = rr[g] = ri[g] = 0;
         }
-        double c0 = frac(I->v * (sk * t0 + ok)), dc = frac(I->v * sk / e->fs);
-        if (!isfinite(c0) || !isfinite(dc)) {
+        double *dk[RG];
+        for (int g = 0; g < RG; g++)
+            dk[g] = d + (size_t)(k0 + (g < m ? g : 0)) * TB;
+        if (kind == K_EXPREC) {
             for (int i = 0; i < n; i++)
-                dk[i] = 0;
-            continue;
+                for (int g = 0; g < RG; g++) {
+                    dk[g][i] = zr[g];
+                    zr[g] *= rr[g];
+                }
+        } else {
+            int re = kind == K_COSREC;
+            for (int i = 0; i < n; i++)
+                for (int g = 0; g < RG; g++) {
+                    dk[g][i] = re ? zr[g] : zi[g];
+                    double nr = zr[g] * rr[g] - zi[g] * ri[g];
+                    zi[g] = zr[g] * ri[g] + zi[g] * rr[g];
+                    zr[g] = nr;
+                }
         }
-        double zr = cos(2 * M_PI * c0), zi = sin(2 * M_PI * c0);
-        double rr = cos(2 * M_PI * dc), ri = sin(2 * M_PI * dc);
-        if (I->k == K_SINREC)
-            for (int i = 0; i < n; i++) {
-                dk[i] = zi;
-                double nr = zr * rr - zi * ri;
-                zi = zr * ri + zi * rr;
-                zr = nr;
+    }
+}
+
+/* The sum of decaying rotations (K_MODESUM), eight modes side by side:
+ * the modes of a struck body without a register per mode. */
+#define MG 8
+
+static void k_modesum(const ex *e, const tt_ins *I, int64_t f0, int n) {
+    const int *A = args_of(e->P, I);
+    int W = 1, es[4], fs_[4];
+    const double *x[4];
+    for (int j = 0; j < 4; j++) {
+        x[j] = reg(e, A[j]);
+        strides(e, A[j], &es[j], &fs_[j]);
+        W = e->P->regs[A[j]].w > W ? e->P->regs[A[j]].w : W;
+    }
+    double *d = reg(e, I->dst), t0 = (double)f0 / e->fs;
+    for (int i = 0; i < n; i++)
+        d[i] = 0;
+    for (int k0 = 0; k0 < W; k0 += MG) {
+        double zr[MG], zi[MG], rr[MG], ri[MG];
+        for (int g = 0; g < MG; g++) {
+            zr[g] = zi[g] = rr[g] = ri[g] = 0;
+            int k = k0 + g;
+            if (k >= W)
+                continue;
+            double s = x[0][k * es[0]], o = x[1][k * es[1]], s2 = x[2][k * es[2]], o2 = x[3][k * es[3]];
+            double c0 = frac(I->v * (s * t0 + o)), dc = frac(I->v * s / e->fs);
+            double a = exp(I->v2 * (s2 * t0 + o2)), q = exp(I->v2 * s2 / e->fs);
+            zr[g] = a * cos(2 * M_PI * c0), zi[g] = a * sin(2 * M_PI * c0);
+            rr[g] = q * cos(2 * M_PI * dc), ri[g] = q * sin(2 * M_PI * dc);
+            if (!(isfinite(zr[g]) && isfinite(zi[g]) && isfinite(rr[g]) && isfinite(ri[g])))
+                zr[g] = zi[g] = rr[g] = ri[g] = 0;
+        }
+        for (int i = 0; i < n; i++) {
+            double acc = 0;
+            for (int g = 0; g < MG; g++) {
+                acc += zi[g];
+                double nr = zr[g] * rr[g] - zi[g] * ri[g];
+                zi[g] = zr[g] * ri[g] + zi[g] * rr[g];
+                zr[g] = nr;
             }
-        else
-            for (int i = 0; i < n; i++) {
-                dk[i] = zr;
-                double nr = zr * rr - zi * ri;
-                zi = zr * ri + zi * rr;
-                zr = nr;
-            }
+            d[i] += acc;
+        }
     }
 }
 
@@ -607,6 +728,21 @@ static void k_biquad(const ex *e, const tt_ins *I, void *S, int n) {
     for (int k = 0; k < W; k++) {
         double c[5], z1 = s[k].z1, z2 = s[k].z2;
         coefs(I->k, F[k * fes], Q[k * qes], e->fs, c);
+        const double *xk = x + k * xes;
+        double *dk = d + k * TB;
+        if (!ffs && !qfs && xfs) { /* coefficients that hold for the block: kept in registers */
+            double b0 = c[0], b1 = c[1], b2 = c[2], a1 = c[3], a2 = c[4];
+            for (int i = 0; i < n; i++) {
+                double xi = xk[i], y = b0 * xi + z1;
+                z1 = b1 * xi - a1 * y + z2;
+                z2 = b2 * xi - a2 * y;
+                dk[i] = y;
+            }
+            if (!isfinite(z1) || !isfinite(z2))
+                z1 = z2 = 0;
+            s[k].z1 = z1, s[k].z2 = z2;
+            continue;
+        }
         for (int i = 0; i < n; i++) {
             if (i && (ffs || qfs))
                 coefs(I->k, F[k * fes + i * ffs], Q[k * qes + i * qfs], e->fs, c);
@@ -844,7 +980,11 @@ static void exec(const ex *e, int idx, int n, int64_t f0) {
     case K_SINREC:
     case K_COSREC:
     case K_EXPREC:
+    case K_DSINREC:
         k_rec(e, I, f0, n);
+        return;
+    case K_MODESUM:
+        k_modesum(e, I, f0, n);
         return;
     case K_COPY:
         k_copy(e, I, n);
