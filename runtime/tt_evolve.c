@@ -312,14 +312,17 @@ static tt_node *rand_tree(const tt_tree *t, tt_evo_rng *r, int d) {
 }
 
 /* A function around `hole` (x's stand-in; x itself is only copied, by
- * the echo). */
+ * the echo): three times in ten a gain, which retunes what a param or a
+ * product sets; else one of nine others. */
 static tt_node *wrapper(const tt_tree *t, tt_evo_rng *r, tt_node *hole, const tt_node *x) {
     tt_op op;
     double f, q;
     tt_node *y;
-    switch (below(r, 10)) {
-    case 0:
-        return op2(TT_MUL, num(log_uniform(r, 0.25, 4)), hole);
+    int k = tt_evo_rng_uniform(r) < 0.3 ? 0 : 1 + below(r, 9);
+    switch (k) {
+    case 0: /* a gain: a small step (a param retuned), or a large one */
+        f = tt_evo_rng_uniform(r) < 0.5 ? exp(0.2 * tt_evo_rng_normal(r)) : log_uniform(r, 0.25, 4);
+        return op2(TT_MUL, num(f), hole);
     case 1:
         y = rand_tree(t, r, 2);
         return op2(TT_ADD, hole, y);
@@ -612,7 +615,7 @@ int tt_evo_fft(double *re, double *im, int n) {
 
 #define SP_NSCALE 4
 #define SP_PER_OCTAVE 24   /* bands an octave */
-#define SP_FLOOR 1e-8      /* the floor, under the target's loudest band (-80 dB) */
+#define SP_FLOOR 1e-6      /* the floor, 60 dB under the target's loudest band */
 static const double k_scales[SP_NSCALE] = {0, 1.0 / 12, 1.0 / 3, 1}; /* octaves */
 
 struct tt_evo_spectra {
@@ -621,7 +624,7 @@ struct tt_evo_spectra {
     int nfft, hop, nframes, nbands;
     int *blo, *bhi;           /* [nbands] the band's bins [blo, bhi), or none */
     double *bc;               /* [nbands] its centre, in bins (for bands with no bin) */
-    double *win, *cs, *sn;    /* [nfft] Hann window; [nfft / 2] twiddles */
+    double *win, *cs, *sn;    /* [nfft] window; [nfft / 2] twiddles */
     double *kern[SP_NSCALE];  /* [2 khalf + 1] Gaussian over bands, sum 1 */
     int khalf[SP_NSCALE];
     double eps;               /* the floor, in power */
@@ -791,7 +794,7 @@ typedef struct indiv {
 
 typedef struct evo {
     const evo_opts *o;
-    const tt_tree *seed;
+    tt_tree *seed;       /* the file's last tree, its samples' paths made absolute */
     tt_evo_limits lim;
     tt_evo_rng rng;
     double fs;
@@ -918,7 +921,6 @@ static int write_wav(evo *e) {
         return cannot_write(e);
     return 0;
 }
-
 
 /* Individual x (number i of generation g), just rendered into e->buf:
  * scored (target) or written with its tree (ratings). */
@@ -1068,13 +1070,14 @@ static int parse_ratings(evo *e, const char *line) {
 }
 
 /* The ratings of generation g into e->pop[].score: the next line of
- * numbers.  A wrong line typed at a terminal is asked again. */
+ * numbers.  At a terminal, they are asked for, and asked again if the
+ * line is wrong. */
 static int read_ratings(evo *e, int g) {
     char *line = NULL;
     size_t cap = 0;
     int st = -1, tty = e->rf == stdin && isatty(STDIN_FILENO);
     while (st < 0) {
-        if (e->rf == stdin)
+        if (tty)
             fprintf(stderr, "generation %d: rate the %d sounds of %s/gen-%03d (%d numbers, higher is better): ", g,
                     e->npop, e->o->dir, g, e->npop);
         if (getline(&line, &cap, e->rf) < 0) {
@@ -1164,13 +1167,30 @@ static const tt_node *find_op(const tt_node *x, tt_op op) {
     return NULL;
 }
 
+/* Sample files named from the written trees' folder: as absolute paths. */
+static void absolute_samples(tt_node *x) {
+    if (x->op == TT_SAMPLE && x->s && x->s[0] != '/') {
+        char *p = realpath(x->s, NULL);
+        if (p) {
+            free(x->s);
+            x->s = p;
+        }
+    }
+    for (int i = 0; i < x->n; i++)
+        absolute_samples(x->a[i]);
+}
+
 /* The seed: the file's last tree, without voices; the limits. */
 static int take_seed(evo *e, const tt_file *f) {
     const evo_opts *o = e->o;
-    if (!(e->seed = tt_file_tree(f, -1))) {
+    const tt_tree *t = tt_file_tree(f, -1);
+    if (!t) {
         fprintf(stderr, "%s: error: the file holds no tree\n", o->seed_path);
         return EXIT_INPUT;
     }
+    if (!(e->seed = tt_tree_clone(t)))
+        return out_of_memory();
+    absolute_samples(e->seed->root);
     const tt_node *v = find_op(e->seed->root, TT_VOICE);
     if (v) {
         if (v->doc)
@@ -1245,6 +1265,7 @@ static void evo_free(evo *e) {
         tt_tree_free(e->next[i].t);
     free(e->pop), free(e->next), free(e->buf), free(e->wav);
     tt_evo_spectra_free(e->sp);
+    tt_tree_free(e->seed);
     if (e->rf && e->rf != stdin)
         fclose(e->rf);
 }
@@ -1310,11 +1331,11 @@ static const char help_text[] =
     "the parents of the others are drawn by their scores.  Voice nodes are not taken.\n"
     "\n"
     "With --target, the score is a spectral distance to T.wav, rendered at its rate and\n"
-    "length: the mean difference in dB between short-time spectra (Hann windows of about\n"
-    "50 ms or more, half overlapping) in 1/24-octave bands from 20 Hz, each smoothed over\n"
-    "0, 1/12, 1/3 and 1 octave (the smoothed ones keep a slope towards a pitch that is\n"
-    "still far off), with a floor 100 dB under the target's loudest band.  Lower is\n"
-    "better; parents are the best of 3 drawn; the best tenth is kept.\n"
+    "length: the mean difference in dB between short-time spectra (Blackman-Harris windows\n"
+    "of about 50 ms or more, half overlapping) in 1/24-octave bands from 20 Hz, each\n"
+    "smoothed over 0, 1/12, 1/3 and 1 octave (the smoothed ones keep a slope towards a\n"
+    "pitch that is still far off), with a floor 60 dB under the target's loudest band.\n"
+    "Lower is better; parents are the best of 3 drawn; the best tenth is kept.\n"
     "\n"
     "Without a target, you rate: generation NNN is written to DIR/gen-NNN/ind-MM.wav\n"
     "(32-bit float, scaled to a peak of 1 where it is louder) with its tree in ind-MM.tt,\n"

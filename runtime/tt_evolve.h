@@ -26,15 +26,18 @@
  * so a seed makes a run repeatable bit for bit.
  *
  * The spectral distance (tt_evo_spectra): short-time power spectra
- * (Hann windows of about 50 ms or more, a power of two, half
- * overlapping), pooled into bands 1/24 octave wide from 20 Hz to
- * min(0.475 fs, 20 kHz), smoothed over log frequency by Gaussians of 0,
- * 1/12, 1/3 and 1 octave (one spectrum per scale), each as dB above a
- * floor 100 dB under the target's loudest band; the distance is the mean
- * absolute dB difference over scales, frames and bands.  The fine scales
- * see timbre and tuning to a fraction of a band; the coarse ones still
- * overlap when partials are far apart, so a mistuned tree has a slope
- * towards the target's pitch.
+ * (Blackman-Harris windows of about 50 ms or more, a power of two, half
+ * overlapping; their side lobes lie under the floor), pooled into bands
+ * 1/24 octave wide from 20 Hz to min(0.475 fs, 20 kHz), smoothed over
+ * log frequency by Gaussians of 0, 1/12, 1/3 and 1 octave (one spectrum
+ * per scale), each in dB above a floor 60 dB under the target's loudest
+ * band; the distance is the mean absolute dB difference over scales,
+ * frames and bands.  The fine scales see timbre and tuning to a fraction
+ * of a band; the coarse ones still overlap when partials are far apart,
+ * so a mistuned tree has a slope towards the target's pitch.  (Naive
+ * saw, square and triangle waves alias, and their aliases move
+ * erratically with pitch: the slope is rougher for them than for sines
+ * and band-limited oscillators.)
  *
  * Memory: everything is malloc'ed and freed by its free function;
  * nothing is global.  None of it is real-time safe.

@@ -577,6 +577,8 @@ static int check(chk *c, tt_node *x, int depth) {
         if (x->v == 0) {
             if (need_rate(c, x, x->a[1], TT_CONST, "the time (without a MAX)"))
                 return -1;
+            if (x->a[1]->op == TT_NUM && !(x->a[1]->v >= 0 && x->a[1]->v <= TT_MAX_DELAY))
+                return cerr(c, x->a[1], "a delay is 0 to %g s", TT_MAX_DELAY);
         } else if (!(x->v > 0 && x->v <= TT_MAX_DELAY)) {
             return cerr(c, x, "a delay holds at most %g s", TT_MAX_DELAY);
         }
@@ -617,8 +619,9 @@ static int check(chk *c, tt_node *x, int depth) {
         if (first && (need_scalar(c, x, x->a[0], "the transition") || need_rate(c, x, x->a[0], TT_CONST, "the transition") ||
                       need_scalar(c, x, x->a[1], "the start") || need_rate(c, x, x->a[1], TT_CONST, "the start")))
             return -1;
-        if (first && !(x->a[0]->op == TT_NUM && x->a[0]->v >= 0 && x->a[1]->op == TT_NUM && x->a[1]->v >= 0))
-            return cerr(c, x->a[0], "the transition and its start are times from 0");
+        if (first && !(x->a[0]->op == TT_NUM && x->a[0]->v >= 0 && x->a[0]->v <= 86400 && x->a[1]->op == TT_NUM &&
+                       x->a[1]->v >= 0 && x->a[1]->v <= 86400))
+            return cerr(c, x->a[0], "the transition and its start are times from 0 to a day");
         for (int i = first; i < x->n; i += 2) {
             if (need_scalar(c, x, x->a[i + 1], "a weight") || need_rate(c, x, x->a[i + 1], TT_CONTROL, "a weight"))
                 return -1;

@@ -15,8 +15,8 @@
  *   env          linear between keys, held outside them
  *   delay X S    y_n = x_{n - S fs}: 4-point Catmull-Rom between samples
  *   lowpass ...  RBJ biquads (bilinear, prewarped at F), Q 1/sqrt 2
- *   reson X F T  y_n = 2 r cos w y_{n-1} - r^2 y_{n-2} + sin w x_n,
- *                r = 10^(-3 / (T fs)): an impulse rings as r^n sin(w (n+1))
+ *   reson X F T  w_n = r e^{i th} w_{n-1} + x_n, y_n = Im(e^{i th} w_n), th = 2 pi F / fs,
+ *                r = 10^(-3 / (T fs)): an impulse rings as r^n sin(th (n+1))
  *   sample       the file's channels averaged; Catmull-Rom at a position
  *                advancing RATE fs_file / fs per sample
  *   importance   weights that sum to one (tt_importance), ramped over a
@@ -757,31 +757,37 @@ static void k_biquad(const ex *e, const tt_ins *I, void *S, int n) {
     }
 }
 
+/* A complex one-pole: w_n = r e^{i theta} w_{n-1} + x_n, y_n = Im(e^{i theta} w_n),
+ * whose impulse rings as r^n sin(theta (n + 1)); its pole's modulus is r
+ * whatever theta does, so a frequency moving every sample cannot make it
+ * grow (a direct-form two-pole can). */
 static void k_reson(const ex *e, const tt_ins *I, void *S, int n) {
     int W = e->P->regs[I->dst].w, xes, xfs, fes, ffs, tes, tfs;
-    bq *s = S;
+    bq *s = S; /* z1, z2: the real and imaginary parts of w */
     double *d = reg(e, I->dst);
     const double *x = reg(e, I->a[0]), *F = reg(e, I->a[1]), *T = reg(e, I->a[2]);
     strides(e, I->a[0], &xes, &xfs);
     strides(e, I->a[1], &fes, &ffs);
     strides(e, I->a[2], &tes, &tfs);
     for (int k = 0; k < W; k++) {
-        double y1 = s[k].z1, y2 = s[k].z2, c1 = 0, c2 = 0, g = 0;
+        double wr = s[k].z1, wi = s[k].z2, c = 0, sn = 0, r = 0;
         for (int i = 0; i < n; i++) {
             if (i == 0 || ffs || tfs) {
                 double w = 2 * M_PI * F[k * fes + i * ffs] / e->fs, T60 = T[k * tes + i * tfs];
-                double r = T60 > 0 && isfinite(T60) ? pow(10, -3 / (T60 * e->fs)) : 0;
+                r = T60 > 0 && isfinite(T60) ? pow(10, -3 / (T60 * e->fs)) : 0;
                 if (!isfinite(w))
                     w = 0;
-                c1 = 2 * r * cos(w), c2 = r * r, g = sin(w);
+                c = cos(w), sn = sin(w);
             }
-            double y = c1 * y1 - c2 * y2 + g * x[k * xes + i * xfs];
-            y2 = y1, y1 = y;
-            d[k * TB + i] = y;
+            double xi = x[k * xes + i * xfs];
+            double nr = r * (c * wr - sn * wi) + xi;
+            wi = r * (sn * wr + c * wi);
+            wr = nr;
+            d[k * TB + i] = sn * wr + c * wi;
         }
-        if (!isfinite(y1) || !isfinite(y2))
-            y1 = y2 = 0;
-        s[k].z1 = y1, s[k].z2 = y2;
+        if (!isfinite(wr) || !isfinite(wi))
+            wr = wi = 0;
+        s[k].z1 = wr, s[k].z2 = wi;
     }
 }
 

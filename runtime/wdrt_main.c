@@ -22,6 +22,7 @@
 
 #include "cx.h"
 #include "tt.h"
+#include "tt_evolve.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -798,6 +799,8 @@ int main(int argc, char **argv) {
         return cmd_tree(argc, argv);
     if (!strcmp(argv[1], "dot"))
         return cmd_dot(argc, argv);
+    if (!strcmp(argv[1], "evolve"))
+        return tt_evolve_main(argc - 1, argv + 1);
     usage_error("unknown command '%s'", argv[1]);
     return EXIT_USAGE;
 }
