@@ -733,14 +733,6 @@ static double rms(const double *x, long n) {
     return sqrt(s / (double)n);
 }
 
-static int has_op(const tt_node *x, tt_op op) {
-    if (x->op == op)
-        return 1;
-    for (int i = 0; i < x->n; i++)
-        if (has_op(x->a[i], op))
-            return 1;
-    return 0;
-}
 
 typedef struct result {
     int ninstr, nodes;
@@ -816,7 +808,7 @@ static int bench_tree(const tt_tree *t, int hand_kind, int modes, result *res) {
     hand_init(&h, hand_kind, modes, t);
     runner rs[NEVAL] = {{E_COMP, &comp, NULL, NULL, 0, 0}, {E_WALK, NULL, &w, NULL, 0, 0},
                         {E_HAND, NULL, NULL, &h, 0, 0}};
-    int use[NEVAL] = {1, 1, hand_kind != H_NONE}, noisy = has_op(t->root, TT_NOISE);
+    int use[NEVAL] = {1, 1, hand_kind != H_NONE}, noisy = tt_node_has(t->root, TT_NOISE);
     for (int e = 0; e < NEVAL && !failed; e++) {
         if (!use[e])
             continue;

@@ -156,6 +156,7 @@ TT_HIDDEN tt_node *tt_node_clone(const tt_node *x);       /* deep; NULL: out of 
 TT_HIDDEN void tt_node_free(tt_node *x);
 TT_HIDDEN int tt_node_count(const tt_node *x);
 TT_HIDDEN int tt_node_depth(const tt_node *x);
+TT_HIDDEN int tt_node_has(const tt_node *x, tt_op op); /* x or a node under it is op */
 /* Writes the tree as an expression that reads back to the same tree
  * (numbers in the shortest text that reads back to the same double). */
 TT_HIDDEN void tt_print(FILE *f, const tt_node *x);

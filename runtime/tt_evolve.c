@@ -221,14 +221,6 @@ static const tt_node *nth_node(const tt_node *x, int *k) {
     return NULL;
 }
 
-static int has_op(const tt_node *x, tt_op op) {
-    if (x->op == op)
-        return 1;
-    for (int i = 0; i < x->n; i++)
-        if (has_op(x->a[i], op))
-            return 1;
-    return 0;
-}
 
 static int has_args(const tt_node *x) { return x->n > 0; }
 
@@ -530,7 +522,7 @@ static int apply(tt_tree *t, const tt_tree *b, tt_mutation kind, tt_evo_rng *r, 
 static int fits(tt_tree *t, const tt_evo_limits *lim) {
     char err[512];
     return tt_node_depth(t->root) <= lim->max_depth && tt_node_count(t->root) <= lim->max_nodes &&
-           !has_op(t->root, TT_VOICE) && tt_check(t, err, sizeof err) == 0;
+           !tt_node_has(t->root, TT_VOICE) && tt_check(t, err, sizeof err) == 0;
 }
 
 tt_evo_limits tt_evo_default_limits(const tt_tree *seed) {

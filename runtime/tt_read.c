@@ -160,6 +160,15 @@ int tt_node_count(const tt_node *x) {
     return c;
 }
 
+int tt_node_has(const tt_node *x, tt_op op) {
+    if (x->op == op)
+        return 1;
+    for (int i = 0; i < x->n; i++)
+        if (tt_node_has(x->a[i], op))
+            return 1;
+    return 0;
+}
+
 int tt_node_depth(const tt_node *x) {
     int d = 0;
     for (int i = 0; i < x->n; i++) {

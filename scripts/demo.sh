@@ -12,8 +12,11 @@
 # event.  Prints one line per render; stops with non-zero status at the
 # first failure.
 #
-# Then renders every scene, scenes/*.wds, with bin/wdrt, and writes LV2
-# bundles of the tone stack and a piano note to out/lv2/.
+# Then renders every scene, scenes/*.wds, with bin/wdrt (among them the
+# timbre-tree demos: drum, siren, scrape, engine, mix), renders three
+# seconds of each tree of the library the scenes use, scenes/lib/*.tt, to
+# out/lib/NAME.wav, and writes LV2 bundles of the tone stack and a piano
+# note to out/lv2/.
 #
 # Usage: sh scripts/demo.sh     (or: make demo, which builds bin/wdc first)
 
@@ -88,6 +91,26 @@ for s in scenes/*.wds; do
     ns=$((ns + 1))
 done
 echo "demo: $ns scenes rendered"
+
+# The tree library: bin/wdrt tree renders the last tree of each
+# scenes/lib/*.tt to out/lib/NAME.wav, with params that show it off where
+# its defaults are quiet.
+params_for() {
+    case "$(basename "$1" .tt)" in
+    crowd) echo "--param applause=0.6" ;; # the defaults are a hall's murmur
+    esac
+}
+mkdir -p "$OUT/lib" || exit 1
+nt=0
+for t in scenes/lib/*.tt; do
+    [ -e "$t" ] || continue
+    twav="$OUT/lib/$(basename "$t" .tt).wav"
+    # shellcheck disable=SC2046 # the params are words
+    "$WDRT" tree "$t" -o "$twav" --seconds 3 $(params_for "$t") ||
+        { echo "demo: FAILED: $WDRT tree $t $(params_for "$t")" >&2; exit 1; }
+    nt=$((nt + 1))
+done
+echo "demo: $nt trees of scenes/lib rendered to $OUT/lib/"
 
 # Plugins: an effect and an instrument as LV2 bundles, for any LV2 host
 # (LV2_PATH=$PWD/out/lv2).
