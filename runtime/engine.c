@@ -79,6 +79,7 @@ typedef struct inst {
     int after;         /* A_*: what the end of a fade-out does */
     int act;           /* index in the active list, or -1 */
     int start;         /* offset in this block it renders from */
+    uint64_t born;     /* the frame its note was played at */
     int chain, tail;   /* its events in this block */
     int age;           /* grid blocks since it started sounding */
     int priority;
@@ -1013,6 +1014,7 @@ static void play(wdrt_engine *e, const ev *x) {
     v->priority = p->cfg.priority + x->n;
     v->after = A_NONE;
     v->start = x->off;
+    v->born = x->frame;
     v->age = 0;
     v->level = v->last = v->peak = 0;
     v->quiet = 0;
@@ -1194,7 +1196,10 @@ static void apply_event(wdrt_engine *e, int k, const ev *x, uint64_t now) {
         break;
     case EV_SET: {
         pramp *r = &v->pr[x->n];
-        if (cls->params[x->n].flags & WDV_PARAM_STEP) {
+        /* a step, not a ramp: for a voice that asks for it, and for a note
+         * set at the frame it is played (its first sample has the value) */
+        if ((cls->params[x->n].flags & WDV_PARAM_STEP) ||
+            (!e->pools[v->pool].cfg.owned && x->frame == v->born && v->age == 0)) {
             cls->set_param(v->st, x->n, x->value);
             r->steps = r->done = 0;
             ramps_next(v, cls->n_params);
@@ -1711,6 +1716,11 @@ static void reverb(wdrt_engine *e, int nb) {
 /* What reaches the listener from slot q in this block, mixed in. */
 static void slot_render(wdrt_engine *e, slot *q, uint64_t t0, int nb) {
     double p0[3], p1[3];
+    /* nothing is written past what was fed: what an interpolator reads
+     * there (a sleeping voice's line draining, the last frames of a
+     * source at the listener) is silence, not the line's older laps */
+    for (uint64_t f = q->fed > t0 ? q->fed : t0; f < t0 + (uint64_t)nb + 4; f++)
+        q->buf[f & e->dmask] = 0;
     double tau0 = retarded(e, q, (double)t0, e->lpos, q->tau, p0);
     double tau = tau0;
     /* the source at rest since before what is heard, and the listener

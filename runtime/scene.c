@@ -1667,6 +1667,7 @@ static wdrt_voice handle(const render *R, int vi) {
 static void add_drive(render *R, const sx *c, double offset, wdrt_voice v, int param) {
     R->dr = grow(R->dr, R->ndr, sizeof *R->dr);
     drive *d = &R->dr[R->ndr++];
+    memset(d, 0, sizeof *d);
     d->curve = c;
     d->offset = offset;
     d->v = v;
@@ -1750,6 +1751,11 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
         int nm = motion_sets(R->S, x->voice);
         for (; R->si <= x->nsets + nm; R->si++) {
             const scparam *q = R->si <= x->nsets ? &x->sets[R->si - 1] : motion_set(R->S, x->voice, R->si - 1 - x->nsets);
+            int own = 0; /* a play's own set wins over the param's binding */
+            for (int j = 0; R->si > x->nsets && j < x->nsets; j++)
+                own |= x->sets[j].id == q->id;
+            if (own)
+                continue;
             double val = q->val.motion ? motion_at(R->S, q->val.motion, x->time, J) : q->val.v;
             if ((r = wdrt_engine_set(e, f, R->note, q->id, val)) != WDRT_OK)
                 return r;

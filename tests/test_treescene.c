@@ -158,6 +158,40 @@ static void test_impact_impulse_from_path(void **st) {
     free(y);
 }
 
+static void test_note_sets(void **st) {
+    (void)st;
+    /* a play's set holds from the note's first frame (no ramp from the
+     * default), and wins over the param's motion binding */
+    long n;
+    double *y = render("(length 0.3)\n"
+                       "(tree n (+ (* 0 t) a (* 0 (env (0 1) (0.1 1) (0.1 0)))) (pool 2) (param a (impulse)))\n"
+                       "(at 0.1 (play n (set a 0.42)))\n",
+                       &n);
+    long f = (long)llround(0.1 * FS);
+    assert_true(fabs(y[f - 1]) < 1e-15);
+    assert_true(fabs(y[f] - 0.42) < 1e-15);
+    assert_true(fabs(y[f + 1000] - 0.42) < 1e-15);
+    free(y);
+}
+
+static void test_sleeping_line_silent(void **st) {
+    (void)st;
+    /* a placed tree that ends and sleeps: its delay line drains to silence,
+     * never replaying what it held a lap earlier */
+    long n;
+    double *y = render("(distance inverse (ref 1) (max 100) (rolloff 1))\n"
+                       "(listener (pos 0 0 1.7) (facing 0 1 0))\n"
+                       "(tree car (* (env (0 1) (0.5 1) (0.6 0)) (* 0.3 (sine (* 100 t)))) (pos 2 5 0.4))\n",
+                       &n);
+    double tail = 0;
+    for (long i = (long)(0.62 * FS); i < n; i++)
+        tail = fmax(tail, fabs(y[i]));
+    printf("after the end: peak %.3g over %.3f s\n", tail, (double)n / FS - 0.62);
+    assert_true(n > (long)(0.65 * FS));
+    assert_true(tail < 1e-12); /* the air filter's tail dies away; the old lap was 0.036 */
+    free(y);
+}
+
 static void test_tree_from_definitions(void **st) {
     (void)st;
     char dir[128];
@@ -274,6 +308,7 @@ int main(void) {
         cmocka_unit_test(test_distance_follows_path), cmocka_unit_test(test_speed_and_travel),
         cmocka_unit_test(test_coordinates),           cmocka_unit_test(test_impact_impulse_from_path),
         cmocka_unit_test(test_tree_from_definitions), cmocka_unit_test(test_pool_notes),
+        cmocka_unit_test(test_note_sets),             cmocka_unit_test(test_sleeping_line_silent),
         cmocka_unit_test(test_scene_errors),          cmocka_unit_test(test_room_ambience),
         cmocka_unit_test(test_dot),
     };
