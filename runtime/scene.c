@@ -771,7 +771,7 @@ static int make_tree(wdrt_scene *S, const sx *n, const char *name, const sx *x) 
     for (const sx *p = x->next; p; p = p->next)
         if (voice_prop(S, v, p))
             return -1;
-    int inl = !(x->kind == SX_STR || (x->kind == SX_LIST && sx_is(x->head, "use")));
+    int inl = x->kind != SX_STR; /* an expression, or a use whose arguments may read the names */
     const char *names[TT_MAX_PARAMS];
     double defs[TT_MAX_PARAMS];
     int np = 0;
@@ -1627,6 +1627,21 @@ void wdrt_scene_dot(const wdrt_scene *S, FILE *f) {
             }
         fprintf(f, "\"];\n  ev%d -> %s [style=dashed];\n", i, root);
     }
+    /* who strikes whom */
+    for (int k = 0; k < S->nev; k++) {
+        const scevent *x = &S->ev[k];
+        if (x->kind != SE_IMPACT)
+            continue;
+        int dup = 0;
+        for (int j = 0; j < k; j++)
+            dup |= S->ev[j].kind == SE_IMPACT && S->ev[j].voice == x->voice && !strcmp(S->ev[j].hitter->text, x->hitter->text);
+        if (dup)
+            continue;
+        char a[64], b[64];
+        obj_node(S, x->hitter->text, a, sizeof a);
+        obj_node(S, S->voices[x->voice].name, b, sizeof b);
+        fprintf(f, "  %s -> %s [style=bold color=\"#cc0000\" label=\"impacts\"];\n", a, b);
+    }
     fputs("}\n", f);
 }
 
@@ -1957,6 +1972,14 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
         if (S->cx[i].path)
             add_drive(&R, S->cx[i].path, 0, wdrt_engine_voice(R.e, S->nvoices + i, 0), DRIVE_MOVE);
     double secs = o && o->seconds > 0 ? o->seconds : S->length;
+    for (int i = 0; secs <= 0 && i < S->nvoices; i++)
+        if (S->voices[i].tree && !S->voices[i].pool && !isfinite(tt_prog_end(S->voices[i].prog))) {
+            fprintf(stderr,
+                    "%s: note: tree '%s' never ends and the scene has no (length): it is rendered until %g s "
+                    "after the last event\n",
+                    S->doc->path, S->voices[i].name, LAST_RING_S);
+            break;
+        }
     uint64_t n = secs > 0 ? frame_of(secs, R.fs) : 0, last = last_frame(&R);
     uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0, alloc = 0;
     const uint64_t chunk = 4096;

@@ -1599,8 +1599,11 @@ int tt_file_add_form(tt_file **defs, const sx_doc *d, const sx *f, const char *d
 }
 
 /* (use NAME (P EXPR)...) as a whole tree: the params the use does not
- * give stay params (with their defaults and ranges). */
-static tt_tree *inline_use(tt_file *F, const sx_doc *doc, const sx *x, const char *dir, char *err, size_t errlen) {
+ * give stay params (with their defaults and ranges), and the names in
+ * pnames that are not the used tree's are params too, which the use's
+ * expressions may read. */
+static tt_tree *inline_use(tt_file *F, const sx_doc *doc, const sx *x, const char *dir, int np,
+                           const char *const *pnames, const double *pdefs, char *err, size_t errlen) {
     rd R = {F, doc, dir, NULL, 0, {0}, 0, 0, err, errlen};
     const sx *n = x->head->next;
     if (!n || n->kind != SX_SYM) {
@@ -1612,16 +1615,19 @@ static tt_tree *inline_use(tt_file *F, const sx_doc *doc, const sx *x, const cha
         return NULL;
     tt_node **given = calloc((size_t)(d->np > 0 ? d->np : 1), sizeof *given);
     int *pidx = calloc((size_t)(d->np > 0 ? d->np : 1), sizeof *pidx);
-    tt_tree *t = tree_new(d->name, d->np);
-    if (!given || !pidx || !t) {
+    binding *b = calloc((size_t)(np > 0 ? np : 1), sizeof *b);
+    tt_tree *t = tree_new(d->name, d->np + np);
+    if (!given || !pidx || !t || !b) {
         RERR(&R, x, "out of memory");
         goto fail;
     }
-    if (use_args(&R, d, n, given, 0))
-        goto fail;
+    /* the used tree's params the use leaves, then the other names */
     for (int i = 0; i < d->np; i++) {
+        int gv = 0;
+        for (const sx *p = n->next; p; p = p->next)
+            gv |= p->kind == SX_LIST && p->head && sx_is(p->head, d->pn[i]);
         pidx[i] = -1;
-        if (given[i])
+        if (gv)
             continue;
         int k = t->nparams;
         if (!(t->pname[k] = dupstr(d->pn[i]))) {
@@ -1633,18 +1639,42 @@ static tt_tree *inline_use(tt_file *F, const sx_doc *doc, const sx *x, const cha
         pidx[i] = k;
         t->nparams++;
     }
+    int nb = 0;
+    for (int j = 0; j < np; j++) {
+        int own = 0;
+        for (int i = 0; i < d->np; i++)
+            own |= !strcmp(d->pn[i], pnames[j]);
+        if (own)
+            continue;
+        int k = t->nparams;
+        if (!(t->pname[k] = dupstr(pnames[j]))) {
+            RERR(&R, x, "out of memory");
+            goto fail;
+        }
+        t->pdef[k] = pdefs ? pdefs[j] : 0;
+        t->pmin[k] = -1e300, t->pmax[k] = 1e300;
+        t->nparams++;
+        b[nb].name = pnames[j], b[nb].param = k, b[nb].expr = NULL;
+        nb++;
+    }
+    R.b = b, R.nb = nb;
+    if (use_args(&R, d, n, given, 0))
+        goto fail;
+    R.b = NULL, R.nb = 0;
     if (!(t->root = expand(&R, d, given, pidx, n, 0)) || tt_check(t, err, errlen))
         goto fail;
     for (int i = 0; i < d->np; i++)
         tt_node_free(given[i]);
     free(given);
     free(pidx);
+    free(b);
     return t;
 fail:
     for (int i = 0; given && i < d->np; i++)
         tt_node_free(given[i]);
     free(given);
     free(pidx);
+    free(b);
     tt_tree_free(t);
     return NULL;
 }
@@ -1670,8 +1700,8 @@ tt_tree *tt_tree_inline(tt_file *defs, const sx_doc *d, const sx *x, const char 
             tt_file_free(g);
         }
         free(p);
-    } else if (x->kind == SX_LIST && sx_is(x->head, "use") && np == 0) {
-        t = inline_use(defs, d, x, dir, err, errlen);
+    } else if (x->kind == SX_LIST && sx_is(x->head, "use")) {
+        t = inline_use(defs, d, x, dir, np, pnames, pdefs, err, errlen);
     } else {
         t = tree_new("", np);
         binding *b = calloc((size_t)(np ? np : 1), sizeof *b);

@@ -102,6 +102,15 @@ static void usage_error(const char *fmt, ...) {
     exit(EXIT_USAGE);
 }
 
+/* "peak -6.0 dBFS", or "silent" */
+static const char *peak_text(double pk, char *buf, size_t n) {
+    if (pk > 0)
+        snprintf(buf, n, "peak %.1f dBFS", 20 * log10(pk));
+    else
+        snprintf(buf, n, "silent");
+    return buf;
+}
+
 /* ---- the voice cache ---- */
 
 typedef struct hash {
@@ -412,10 +421,11 @@ static int cmd_render(int argc, char **argv) {
         double pk = 0, wall = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
         for (long i = 0; i < n * nch; i++)
             pk = fabs(frames[i]) > pk ? fabs(frames[i]) : pk;
+        char pb[40];
         fprintf(stderr,
-                "wdrt: wrote %s: %.2f s, %d channel%s at %.0f Hz, peak %.1f dBFS; %llu events (%llu late), "
+                "wdrt: wrote %s: %.2f s, %d channel%s at %.0f Hz, %s; %llu events (%llu late), "
                 "%llu sleeps, %llu steals, %llu virtual; %.1fx real time\n",
-                path, n / rate, nch, nch > 1 ? "s" : "", rate, pk > 0 ? 20 * log10(pk) : -400.0,
+                path, n / rate, nch, nch > 1 ? "s" : "", rate, peak_text(pk, pb, sizeof pb),
                 (unsigned long long)st.events, (unsigned long long)st.late, (unsigned long long)st.sleeps,
                 (unsigned long long)st.steals, (unsigned long long)st.virtualized, wall > 0 ? n / rate / wall : 0);
     }
@@ -536,8 +546,9 @@ static int write_complex(const cxopts *o, const cx_score *sc) {
         double pk = 0;
         for (long i = 0; i < n; i++)
             pk = fmax(pk, fabs(y[i]));
-        fprintf(stderr, "wdrt: wrote %s: %.2f s, %d notes (at most %d at once), peak %.1f dBFS\n", path, n / o->rate,
-                sc->nnotes, sc->maxactive, pk > 0 ? 20 * log10(pk) : -400.0);
+        char pb[40];
+        fprintf(stderr, "wdrt: wrote %s: %.2f s, %d notes (at most %d at once), %s\n", path, n / o->rate,
+                sc->nnotes, sc->maxactive, peak_text(pk, pb, sizeof pb));
     }
     free(y);
     free(def);
@@ -711,8 +722,9 @@ static int cmd_tree(int argc, char **argv) {
         double pk = 0;
         for (long i = 0; i < n; i++)
             pk = fmax(pk, fabs(y[i]));
-        fprintf(stderr, "wdrt: wrote %s: %.2f s at %.0f Hz, peak %.1f dBFS\n", path, n / rate, rate,
-                pk > 0 ? 20 * log10(pk) : -400.0);
+        char pb[40];
+        fprintf(stderr, "wdrt: wrote %s: %.2f s at %.0f Hz, %s\n", path, n / rate, rate,
+                peak_text(pk, pb, sizeof pb));
     }
     free(def);
     free(y);
