@@ -132,6 +132,8 @@ typedef struct tt_node {
     double *k;             /* see the ops */
     int nk;
     char **pn;             /* TT_VOICE: [n - nin] param names */
+    char *use;             /* the tree a (use NAME ...) expanded here, or NULL:
+                              schematics draw it as one box */
     int nin;               /* TT_VOICE: inputs */
     /* where it was written: doc NULL for nodes a program made */
     const sx_doc *doc;

@@ -106,6 +106,7 @@ void tt_node_free(tt_node *x) {
         for (int i = 0; i < x->n - x->nin; i++)
             free(x->pn[i]);
     free(x->pn);
+    free(x->use);
     free(x->a);
     free(x->s);
     free(x->k);
@@ -131,6 +132,8 @@ tt_node *tt_node_clone(const tt_node *x) {
     y->v = x->v, y->nin = x->nin, y->doc = x->doc, y->line = x->line, y->col = x->col;
     y->width = x->width, y->rate = x->rate, y->nk = x->nk;
     if (x->s && !(y->s = dupstr(x->s)))
+        ok = 0;
+    if (x->use && !(y->use = dupstr(x->use)))
         ok = 0;
     if (x->nk && (y->k = malloc(sizeof(double) * (size_t)x->nk)))
         memcpy(y->k, x->k, sizeof(double) * (size_t)x->nk);
@@ -357,6 +360,10 @@ void tt_print_tree(FILE *f, const tt_tree *t) {
 static void dot_node(FILE *f, const tt_node *x, const char *prefix, int *id, char *name) {
     snprintf(name, 64, "%s%d", prefix, (*id)++);
     char kids[64];
+    if (x->use && *id > 1) { /* a used tree: one box (wdrt dot of its file draws the inside) */
+        fprintf(f, "  %s [shape=box3d style=filled fillcolor=\"#e6e6fa\" label=\"%s\"];\n", name, x->use);
+        return;
+    }
     switch (x->op) {
     case TT_NUM:
         fprintf(f, "  %s [shape=plaintext label=\"", name);
@@ -903,6 +910,11 @@ static tt_node *expand(rd *R, const def *d, tt_node **given, const int *pidx, co
     sub.stack[sub.nstack++] = d;
     out = expr(&sub, d->expr, depth + 1);
     R->nodes = sub.nodes;
+    if (out && !out->use && !(out->use = dupstr(d->name))) {
+        RERR(R, at, "out of memory");
+        tt_node_free(out);
+        out = NULL;
+    }
 done:
     for (int i = 0; dflt && i < d->np; i++)
         tt_node_free(dflt[i]);

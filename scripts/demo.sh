@@ -15,8 +15,9 @@
 # Then renders every scene, scenes/*.wds, with bin/wdrt (among them the
 # timbre-tree demos: drum, siren, scrape, engine, mix), renders three
 # seconds of each tree of the library the scenes use, scenes/lib/*.tt, to
-# out/lib/NAME.wav, and writes LV2 bundles of the tone stack and a piano
-# note to out/lv2/.
+# out/lib/NAME.wav, draws the schematics of two scenes (out/drum.svg,
+# out/mix.svg), and writes LV2 bundles of the tone stack and a piano note
+# to out/lv2/.
 #
 # Usage: sh scripts/demo.sh     (or: make demo, which builds bin/wdc first)
 
@@ -111,6 +112,18 @@ for t in scenes/lib/*.tt; do
     nt=$((nt + 1))
 done
 echo "demo: $nt trees of scenes/lib rendered to $OUT/lib/"
+
+# Schematics: the sound networks of two scenes drawn by Graphviz
+# (installed here when missing: it only draws pictures).
+command -v dot >/dev/null 2>&1 || sh scripts/apt-install.sh demo graphviz ||
+    echo "demo: no Graphviz: the schematics stay as .dot files" >&2
+for s in drum mix; do
+    "$WDRT" dot "scenes/$s.wds" -o "$OUT/$s.dot" || { echo "demo: FAILED: $WDRT dot scenes/$s.wds" >&2; exit 1; }
+    if command -v dot >/dev/null 2>&1; then
+        dot -Tsvg "$OUT/$s.dot" -o "$OUT/$s.svg" || { echo "demo: FAILED: dot -Tsvg $OUT/$s.dot" >&2; exit 1; }
+        echo "demo: $OUT/$s.svg, the schematic of scenes/$s.wds"
+    fi
+done
 
 # Plugins: an effect and an instrument as LV2 bundles, for any LV2 host
 # (LV2_PATH=$PWD/out/lv2).
