@@ -21,7 +21,7 @@ TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
 NETLISTS   = $(wildcard netlists/*.wdn)
 # tests built again under ThreadSanitizer, and under AddressSanitizer + UBSan
 TSAN_BINS  = build/tests/test_storm_tsan
-ASAN_BINS  = build/tests/test_engine_asan build/tests/test_scene_asan build/tests/test_tree_asan build/tests/test_treescene_asan build/tests/test_evolve_asan
+ASAN_BINS  = build/tests/test_engine_asan build/tests/test_scene_asan build/tests/test_tree_asan build/tests/test_treescene_asan build/tests/test_evolve_asan build/tests/test_surf_asan
 
 all: bin/wdc bin/wdrt
 
