@@ -174,6 +174,9 @@ struct wdrt_engine {
     int *virt, nvirt;
     int *inputs, ninputs;  /* standing voices with bound inputs */
     int *touched, ntouched; /* pools with events chained in this block */
+    unsigned char *pwake;   /* pools the excitations phase woke this block */
+    void (*excite)(void *user, uint64_t frame, int nframes, unsigned char *wake);
+    void *excite_user;
     /* space */
     wdrt_space_config sp;
     slot *slots;
@@ -213,7 +216,7 @@ typedef struct layout {
     size_t fdnsize[64];
     int ntaps;             /* images per slot: 0 when no room reflects */
     uint64_t dlen, hlen;
-    size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, mix,
+    size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, pwake, mix,
         obuf, zero, optr, iptr, total;
     int ninst, nparams, nin, maxout, maxin, qcap;
 } layout;
@@ -274,6 +277,7 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(virt, sizeof(int) * (size_t)L->ninst, 16);
     PLACE(inputs, sizeof(int) * (size_t)L->ninst, 16);
     PLACE(touched, sizeof(int) * (size_t)(c->npools + 1), 16);
+    PLACE(pwake, (size_t)(c->npools + 1), 16);
     PLACE(mix, sizeof(double) * (size_t)c->block * (size_t)c->channels, 64);
     PLACE(obuf, sizeof(double) * (size_t)c->block * (size_t)(L->maxout ? L->maxout : 1), 64);
     PLACE(zero, sizeof(double) * (size_t)c->block, 64);
@@ -610,6 +614,9 @@ wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg, void *mem, 
     e->virt = (int *)(m + L.virt);
     e->inputs = (int *)(m + L.inputs);
     e->touched = (int *)(m + L.touched);
+    e->pwake = (unsigned char *)(m + L.pwake);
+    e->excite = cfg->excite;
+    e->excite_user = cfg->excite_user;
     e->mix = (double *)(m + L.mix);
     e->obuf = (double *)(m + L.obuf);
     e->zero = (double *)(m + L.zero);
@@ -1976,6 +1983,33 @@ static void end_block(wdrt_engine *e) {
     e->s.cost_ns = running_cost(e);
 }
 
+/* The excitations phase: the hook computes what excites the sources this
+ * block (bodies touching, struck); the voices of the pools it names wake
+ * from sleep at the block's start. */
+static void excite(wdrt_engine *e, uint64_t t0, int nb) {
+    memset(e->pwake, 0, (size_t)e->npools);
+    e->excite(e->excite_user, t0, nb, e->pwake);
+    for (int p = 0; p < e->npools; p++) {
+        if (!e->pwake[p])
+            continue;
+        for (int k = e->pools[p].first; k < e->pools[p].first + e->pools[p].cfg.voices; k++) {
+            inst *v = &e->inst[k];
+            if (v->mode == M_ASLEEP) {
+                e->s.wakes++;
+                v->mode = M_AWAKE;
+                v->start = 0;
+                v->age = GRACE_BLOCKS;
+                v->fade.v = 1, v->fade.left = 0;
+                activate(e, k);
+            } else if (v->mode == M_AWAKE && v->after == A_SLEEP) {
+                v->after = A_NONE;
+                ramp_to(&v->fade, 1, e->B);
+            }
+            v->quiet = 0;
+        }
+    }
+}
+
 void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes) {
     if (!e || (!out && nframes))
         return;
@@ -1987,6 +2021,8 @@ void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes) {
         drain(e);
         resolve(e, t0, nb);
         wake_inputs(e, (int)done, nb);
+        if (e->excite)
+            excite(e, t0, nb);
         memset(e->mix, 0, sizeof(double) * (size_t)nb * (size_t)e->nch);
         for (int i = 0; i < e->nactive; i++)
             render_inst(e, e->active[i], t0, nb, (int)done);

@@ -20,12 +20,14 @@
 
 #include "cx.h"
 #include "sexp.h"
+#include "surf.h"
 #include "tt.h"
 
 #define MAX_PLAY_SETS 32
+#define SURF_MAX_MODES_FILE 1024 /* modes of one body */
 #define LAST_RING_S 120.0 /* a scene without length ends at the latest this long after its last event */
 
-enum { SE_STRIKE, SE_SET, SE_GAIN, SE_PLAY, SE_STOP, SE_IMPACT };
+enum { SE_STRIKE, SE_SET, SE_GAIN, SE_PLAY, SE_STOP, SE_IMPACT, SE_HIT, SE_CONTACT };
 
 /* A number, or a curve over scene time: (curve (T V) (T V) ...). */
 typedef struct scnum {
@@ -91,6 +93,10 @@ typedef struct scevent {
     const sx *hitter;    /* SE_IMPACT: the object that strikes */
     double impulse;      /* SE_IMPACT: N s, or < 0: from the mass and the path */
     double mass;         /* SE_IMPACT: kg */
+    int ba, bb;          /* SE_HIT, SE_CONTACT: the bodies */
+    double vn, vt;       /* SE_HIT: normal and tangential speeds, m/s */
+    scnum force, slip, roll; /* SE_CONTACT: N, m/s, m/s (curves from the event's time) */
+    double until;        /* SE_CONTACT: s, when it parts */
 } scevent;
 
 struct wdrt_scene {
@@ -104,6 +110,8 @@ struct wdrt_scene {
     int nev;
     struct sccomplex *cx; /* complexes (section "complexes"): pools after the voices */
     int ncx;
+    struct scbody *bodies; /* bodies (section "bodies"): taps after the complexes */
+    int nbodies;
     /* space (section "space") */
     wdrt_space_config sp;
     double lis[3];
@@ -975,6 +983,540 @@ static void complex_pools(const wdrt_scene *S, wdrt_pool_config *pc, cx_source *
     }
 }
 
+static uint64_t frame_of(double t, double fs) { return (uint64_t)llround(t * fs); }
+
+/* ---- bodies ----
+ *
+ * Bodies that sound when they touch (surf.h).  Each body with modes of
+ * its own is a resonator heard as a source (a pool of one "tap" voice
+ * after the complexes, placed where the body is); a body that shares
+ * another's resonator rings it.  The world runs in the engine's
+ * excitations phase, before the voices: impacts and contacts of the
+ * timeline act at their frames, and each tap hears its resonator. */
+
+typedef struct scbody {
+    const char *name;
+    const sx *at;
+    surf_mode *modes;
+    int nmodes;
+    int share;          /* the body whose resonator it rings, or -1 */
+    double mass, gain, quiet;
+    surf_surface_desc surf;
+    int placed;
+    double pos[3];
+    const sx *path;
+} scbody;
+
+static int body_index(const wdrt_scene *S, const char *name) {
+    for (int i = 0; i < S->nbodies; i++)
+        if (!strcmp(S->bodies[i].name, name))
+            return i;
+    return -1;
+}
+
+static int body_ref(wdrt_scene *S, const sx *x, int *bi) {
+    if (!x || x->kind != SX_SYM)
+        return ERR(x, "expected the name of a body, found a %s", kind_of(x));
+    if ((*bi = body_index(S, x->text)) >= 0)
+        return 0;
+    const char **names = xcalloc((size_t)S->nbodies + 1, sizeof *names);
+    for (int i = 0; i < S->nbodies; i++)
+        names[i] = S->bodies[i].name;
+    int r = unknown(S, x, "body", x->text, names, S->nbodies);
+    free(names);
+    return r;
+}
+
+/* (modes (F T60 GAIN)...) or (modes "file.modes") */
+static int body_modes(wdrt_scene *S, scbody *b, const sx *p) {
+    if (p->len == 2 && p->head->next->kind == SX_STR) {
+        char *path = resolve_path(S, p->head->next->text);
+        FILE *f = fopen(path, "rb");
+        if (!f) {
+            ERR(p->head->next, "cannot read the modes '%s': %s", path, strerror(errno));
+            free(path);
+            return -1;
+        }
+        fclose(f);
+        b->modes = xcalloc(SURF_MAX_MODES_FILE, sizeof *b->modes);
+        int np = 0;
+        b->nmodes = surf_modes_read(path, b->modes, SURF_MAX_MODES_FILE, &np, S->err, S->errlen);
+        free(path);
+        return b->nmodes < 0 ? -1 : 0;
+    }
+    if (p->len < 2)
+        return ERR(p, "expected (modes (F T60 GAIN)...) or (modes \"file.modes\")");
+    b->modes = xcalloc((size_t)p->len, sizeof *b->modes);
+    for (const sx *m = p->head->next; m; m = m->next) {
+        double v[3];
+        if (m->kind != SX_LIST || m->len != 3)
+            return ERR(m, "expected a mode (F T60 GAIN): Hz, s, and its gain");
+        int i = 0;
+        for (const sx *x = m->head; x; x = x->next)
+            if (number(S, x, &v[i++]))
+                return -1;
+        if (!(v[0] > 0 && v[0] < 1e6 && v[1] > 0 && v[1] <= 1000 && fabs(v[2]) < 1e9))
+            return ERR(m, "a mode has a frequency (Hz) and a T60 (s) above 0, and a finite gain");
+        surf_mode *md = &b->modes[b->nmodes++];
+        md->f = v[0], md->t60 = v[1], md->gain[0] = v[2];
+    }
+    return 0;
+}
+
+/* A property of a body */
+static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
+    static const char *const props[] = {"modes", "share", "mass", "hardness", "damping", "relief", "roll",
+                                        "slip", "gain", "quiet", "pos", "skid"};
+    if (p->kind != SX_LIST || !p->head || p->head->kind != SX_SYM)
+        return ERR(p, "expected a property such as (modes ...) or (mass M)");
+    const char *k = p->head->text;
+    const sx *a = p->head->next;
+    double x;
+    if (!strcmp(k, "modes"))
+        return body_modes(S, b, p);
+    if (!strcmp(k, "share")) {
+        if (arity(S, p, 2, 2, "(share BODY)") || body_ref(S, a, &b->share))
+            return -1;
+        if (S->bodies[b->share].share >= 0)
+            b->share = S->bodies[b->share].share;
+        return 0;
+    }
+    if (!strcmp(k, "pos")) {
+        b->placed = 1;
+        return position(S, p, b->pos, &b->path);
+    }
+    if (!strcmp(k, "relief")) {
+        /* (relief noise|grid|none SCALE [WIDTH]) */
+        static const char *const kinds[] = {"none", "noise", "grid"};
+        if (arity(S, p, 2, 4, "(relief noise|grid|none [SCALE] [WIDTH])"))
+            return -1;
+        int kind = -1;
+        for (int i = 0; i < 3; i++)
+            if (sx_is(a, kinds[i]))
+                kind = i;
+        if (kind < 0)
+            return a->kind == SX_SYM ? unknown(S, a, "relief", a->text, kinds, 3)
+                                     : ERR(a, "expected noise, grid or none");
+        b->surf.relief.kind = (surf_relief_kind)kind;
+        if (a->next && (number(S, a->next, &b->surf.relief.scale) || !(b->surf.relief.scale > 0 && b->surf.relief.scale < 1e3)))
+            return a->next->kind == SX_NUM ? ERR(a->next, "a relief's scale is a length in m above 0") : -1;
+        b->surf.relief.width = b->surf.relief.scale / 2;
+        if (a->next && a->next->next &&
+            (number(S, a->next->next, &b->surf.relief.width) ||
+             !(b->surf.relief.width > 0 && b->surf.relief.width <= b->surf.relief.scale)))
+            return a->next->next->kind == SX_NUM ? ERR(a->next->next, "a grid's bumps are 0 to SCALE wide") : -1;
+        return 0;
+    }
+    if (!strcmp(k, "skid")) { /* (skid DECEL THICKNESS) */
+        if (arity(S, p, 3, 3, "(skid DECEL THICKNESS)") || number(S, a, &b->surf.skid_decel) ||
+            number(S, a->next, &b->surf.skid_thickness))
+            return -1;
+        if (!(b->surf.skid_decel >= 0 && b->surf.skid_thickness >= 0))
+            return ERR(p, "a skid's deceleration (m/s^2) and thickness (m) are 0 or more");
+        return 0;
+    }
+    int known = 0;
+    for (int i = 0; i < (int)(sizeof props / sizeof *props); i++)
+        known |= !strcmp(k, props[i]);
+    if (!known)
+        return unknown(S, p->head, "property", k, props, (int)(sizeof props / sizeof *props));
+    if (arity(S, p, 2, 2, "one number") || number(S, a, &x))
+        return -1;
+    if (!strcmp(k, "mass")) {
+        if (!(x > 0))
+            return ERR(a, "a mass is in kg, above 0");
+        b->mass = x;
+    } else if (!strcmp(k, "hardness")) {
+        if (!(x > 0))
+            return ERR(a, "a hardness is a stiffness in N/m, above 0");
+        b->surf.hardness = x;
+    } else if (!strcmp(k, "damping")) {
+        if (!(x >= 0 && x < 1e6))
+            return ERR(a, "a contact damping is a rate in 1/s, 0 or more");
+        b->surf.damping = x;
+    } else if (!strcmp(k, "roll") || !strcmp(k, "slip")) {
+        if (!(x > 0 && x < 1e6))
+            return ERR(a, "a cutoff is a frequency in Hz above 0");
+        *(k[0] == 'r' ? &b->surf.cutoff_roll : &b->surf.cutoff_slip) = x;
+    } else if (!strcmp(k, "gain")) {
+        if (!isfinite(x))
+            return ERR(a, "a gain is a number");
+        b->gain = x;
+    } else if (!strcmp(k, "quiet")) {
+        if (!(x <= 0 && x >= -300))
+            return ERR(a, "a quiet level is in dB, between -300 and 0");
+        b->quiet = pow(10, x / 20);
+    }
+    return 0;
+}
+
+/* body = '(' 'body' NAME property* ')' */
+static int f_body(wdrt_scene *S, const sx *f) {
+    if (arity(S, f, 2, -1, "(body NAME (modes ...) ...)"))
+        return -1;
+    const sx *n = f->head->next;
+    if (n->kind != SX_SYM)
+        return ERR(n, "expected the name of the body, found a %s", kind_of(n));
+    if (voice_index(S, n->text) >= 0 || complex_index(S, n->text) >= 0 || body_index(S, n->text) >= 0 ||
+        !strcmp(n->text, "listener"))
+        return ERR(n, "'%s' is already in the scene", n->text);
+    if (S->nbodies == 256)
+        return ERR(n, "a scene holds at most 256 bodies");
+    S->bodies = grow(S->bodies, S->nbodies, sizeof *S->bodies);
+    scbody *b = &S->bodies[S->nbodies++];
+    memset(b, 0, sizeof *b);
+    b->name = n->text;
+    b->at = n;
+    b->share = -1;
+    b->mass = 0.1;
+    b->gain = 1;
+    b->quiet = 1e-5;
+    b->surf = surf_surface_desc_init();
+    b->surf.relief.kind = SURF_RELIEF_NOISE;
+    b->surf.relief.scale = 1e-4;
+    for (const sx *p = n->next; p; p = p->next)
+        if (body_prop(S, b, p))
+            return -1;
+    if (b->share < 0 && b->nmodes == 0)
+        return ERR(n, "body %s needs its (modes ...) or (share BODY)", b->name);
+    if (b->share >= 0 && b->nmodes)
+        return ERR(n, "body %s has modes of its own and shares another's", b->name);
+    if (b->nmodes > SURF_MAX_MODES_FILE)
+        return ERR(n, "a body has at most %d modes", SURF_MAX_MODES_FILE);
+    return 0;
+}
+
+/* (impact A B (impulse J) [(speed VN VT)]) between bodies */
+static int body_hit(wdrt_scene *S, const sx *f, scevent *e) {
+    const sx *a = f->head->next, *b = a->next;
+    e->kind = SE_HIT;
+    e->voice = -1;
+    if (body_ref(S, a, &e->ba) || body_ref(S, b, &e->bb))
+        return -1;
+    if (e->ba == e->bb)
+        return ERR(b, "a body does not strike itself");
+    e->impulse = -1;
+    for (const sx *p = b->next; p; p = p->next) {
+        if (p->kind == SX_LIST && sx_is(p->head, "impulse") && p->len == 2) {
+            if (number(S, p->head->next, &e->impulse))
+                return -1;
+            if (!(e->impulse >= 0 && e->impulse < 1e6))
+                return ERR(p->head->next, "an impulse is in N s, 0 or more");
+        } else if (p->kind == SX_LIST && sx_is(p->head, "speed") && p->len == 3) {
+            if (number(S, p->head->next, &e->vn) || number(S, p->head->next->next, &e->vt))
+                return -1;
+            if (!(fabs(e->vn) < 1e4 && fabs(e->vt) < 1e4))
+                return ERR(p, "speeds are in m/s");
+        } else {
+            return ERR(p, "expected (impulse J) or (speed VN VT)");
+        }
+    }
+    if (e->impulse < 0)
+        return ERR(f, "an impact between bodies needs its (impulse J)");
+    return 0;
+}
+
+/* (contact A B (force F) (slip V) [(roll V)] (until T)) */
+static int body_contact(wdrt_scene *S, const sx *f, scevent *e) {
+    if (f->len < 3)
+        return ERR(f, "expected (contact A B (force F) (slip V) [(roll V)] (until T))");
+    const sx *a = f->head->next, *b = a->next;
+    e->voice = -1;
+    if (body_ref(S, a, &e->ba) || body_ref(S, b, &e->bb))
+        return -1;
+    if (e->ba == e->bb)
+        return ERR(b, "a body does not touch itself");
+    int have = 0;
+    for (const sx *p = b->next; p; p = p->next) {
+        int k = p->kind == SX_LIST && p->len == 2 ? (sx_is(p->head, "force") ? 0 : sx_is(p->head, "slip") ? 1
+                                                     : sx_is(p->head, "roll")  ? 2
+                                                     : sx_is(p->head, "until") ? 3
+                                                                               : -1)
+                                                  : -1;
+        if (k < 0)
+            return ERR(p, "expected (force F), (slip V), (roll V) or (until T)");
+        if (k == 3) {
+            if (number(S, p->head->next, &e->until))
+                return -1;
+            if (!(e->until > e->time && e->until <= 86400))
+                return ERR(p->head->next, "a contact lasts until a time after it starts");
+        } else if (value(S, p->head->next, k == 0 ? &e->force : k == 1 ? &e->slip : &e->roll, 1)) {
+            return -1;
+        } else if ((k == 0 ? &e->force : k == 1 ? &e->slip : &e->roll)->motion) {
+            return ERR(p->head->next, "a contact's force and speeds are numbers or curves");
+        }
+        have |= 1 << k;
+    }
+    if ((have & 9) != 9)
+        return ERR(f, "a contact needs its (force F) and (until T)");
+    return 0;
+}
+
+/* The world of a render, and its timeline. */
+typedef struct swent {
+    uint64_t frame;
+    int kind;           /* 0 impact, 1 contact start, 2 update, 3 stop */
+    int a, b, slot;     /* bodies; the contact's slot */
+    surf_impact_data hit;
+    surf_contact_data touch;
+} swent;
+
+typedef struct swhost {
+    surf_world *w;
+    int nres;
+    int *res_pool;      /* per resonator, its tap's pool */
+    int *body_res;      /* per body, its resonator */
+    swent *ev;
+    int nev, next;
+    surf_contact *ids;  /* per contact slot */
+    double *out;        /* [nres][block]: the resonators over the segment */
+    int block;
+    int *cursor;        /* per resonator: frames its tap has read of the segment */
+    double *gain;       /* per resonator */
+} swhost;
+
+typedef struct tap_state {
+    swhost *h;
+    int res;
+} tap_state;
+
+static void tap_init(void *state, double fs) {
+    (void)fs;
+    memset(state, 0, sizeof(tap_state));
+}
+static void tap_reset(void *state) { (void)state; }
+static int tap_set_param(void *state, int id, double v) {
+    (void)state, (void)id, (void)v;
+    return -1;
+}
+static double tap_get_param(const void *state, int id) {
+    (void)state, (void)id;
+    return 0;
+}
+static void tap_process(void *state, const double *const *in, double *const *out, int n) {
+    (void)in;
+    tap_state *t = state;
+    if (!t->h) {
+        memset(out[0], 0, sizeof(double) * (size_t)(n > 0 ? n : 0));
+        return;
+    }
+    int c = t->h->cursor[t->res];
+    const double *y = t->h->out + (size_t)t->res * (size_t)t->h->block;
+    for (int i = 0; i < n; i++)
+        out[0][i] = c + i < t->h->block ? y[c + i] : 0;
+    t->h->cursor[t->res] = c + n;
+}
+static double tap_energy(const void *state) {
+    const tap_state *t = state;
+    return t->h ? surf_resonator_energy(t->h->w, t->res) : 0;
+}
+static double tap_work(const void *state) {
+    (void)state;
+    return 0;
+}
+static int tap_set_ic(void *state, int n, const int *ids, const double *v) {
+    (void)state, (void)n, (void)ids, (void)v;
+    return -1;
+}
+typedef struct tap_data {
+    swhost *h;
+    int res;
+} tap_data;
+static void tap_bind(void *state, const void *data) {
+    tap_state *t = state;
+    const tap_data *d = data;
+    t->h = d->h;
+    t->res = d->res;
+}
+static const wdv_port tap_out[1] = {{"out", ""}};
+static const wdv_class tap_class = {"body", WDV_ABI_VERSION, 64, sizeof(tap_state), 0, 1, 0, 0, NULL, tap_out, NULL,
+                                    NULL, tap_init, tap_reset, tap_set_param, tap_get_param, tap_process,
+                                    tap_energy, tap_work, tap_set_ic};
+
+/* The excitations phase: the world runs the segment, its timeline acting
+ * at its frames; each resonator's output waits for its tap. */
+static void sw_excite(void *user, uint64_t t0, int nb, unsigned char *wake) {
+    swhost *h = user;
+    int done = 0;
+    while (done < nb) {
+        while (h->next < h->nev && h->ev[h->next].frame <= t0 + (uint64_t)done) {
+            swent *x = &h->ev[h->next++];
+            switch (x->kind) {
+            case 0:
+                surf_impact(h->w, 0, x->a, x->b, &x->hit);
+                break;
+            case 1:
+                if (surf_contact_start(h->w, x->a, x->b, &x->touch, &h->ids[x->slot]) != WDRT_OK)
+                    h->ids[x->slot] = 0;
+                break;
+            case 2:
+                if (h->ids[x->slot])
+                    surf_contact_update(h->w, h->ids[x->slot], &x->touch);
+                break;
+            default:
+                if (h->ids[x->slot])
+                    surf_contact_stop(h->w, h->ids[x->slot]);
+                h->ids[x->slot] = 0;
+                break;
+            }
+        }
+        int upto = nb;
+        if (h->next < h->nev && h->ev[h->next].frame < t0 + (uint64_t)nb)
+            upto = (int)(h->ev[h->next].frame - t0);
+        int m = surf_process(h->w, NULL, upto - done);
+        for (int r = 0; r < h->nres; r++) {
+            const double *y = surf_output(h->w, r, 0);
+            double *o = h->out + (size_t)r * (size_t)h->block + done;
+            for (int i = 0; i < m; i++)
+                o[i] = y ? h->gain[r] * y[i] : 0;
+        }
+        done += m;
+        if (m <= 0)
+            break;
+    }
+    for (int r = 0; r < h->nres; r++) {
+        h->cursor[r] = 0;
+        if (surf_resonator_awake(h->w, r))
+            wake[h->res_pool[r]] = 1;
+    }
+}
+
+static int cmp_swent(const void *a, const void *b) {
+    const swent *x = a, *y = b;
+    return x->frame < y->frame ? -1 : x->frame > y->frame ? 1 : x->kind - y->kind;
+}
+
+static void sw_push(swhost *h, int *cap, swent e) {
+    if (h->nev == *cap) {
+        *cap = *cap ? 2 * *cap : 64;
+        h->ev = realloc(h->ev, sizeof *h->ev * (size_t)*cap);
+        if (!h->ev) {
+            fprintf(stderr, "wdrt: out of memory\n");
+            abort();
+        }
+    }
+    h->ev[h->nev++] = e;
+}
+
+static double scnum_at(const scnum *v, double t) { return v->curve ? curve_at(v->curve, t) : v->v; }
+
+/* Builds the world of the scene's bodies and its timeline; the taps'
+ * pools go to pc (one per resonator), their data to td. */
+static int sw_build(const wdrt_scene *S, double fs, int block, int pool0, swhost *h, wdrt_pool_config *pc,
+                    tap_data *td) {
+    memset(h, 0, sizeof *h);
+    if (S->nbodies == 0)
+        return 0;
+    int nres = 0, maxm = 1, ncont = 0;
+    for (int i = 0; i < S->nbodies; i++)
+        if (S->bodies[i].share < 0)
+            nres++, maxm = S->bodies[i].nmodes > maxm ? S->bodies[i].nmodes : maxm;
+    for (int i = 0; i < S->nev; i++)
+        ncont += S->ev[i].kind == SE_CONTACT;
+    surf_config cfg = surf_config_init(fs);
+    cfg.block = block;
+    cfg.max_bodies = S->nbodies;
+    cfg.max_resonators = nres;
+    cfg.max_surfaces = S->nbodies;
+    cfg.max_modes = maxm;
+    cfg.max_pickups = 1;
+    cfg.max_contacts = ncont < 64 ? (ncont ? ncont : 1) : 64;
+    cfg.max_impacts = 64;
+    if (surf_init(&cfg, NULL, &h->w) != WDRT_OK)
+        return -1;
+    h->nres = nres;
+    h->block = block;
+    h->res_pool = xcalloc((size_t)nres + 1, sizeof *h->res_pool);
+    h->body_res = xcalloc((size_t)S->nbodies + 1, sizeof *h->body_res);
+    h->out = xcalloc((size_t)nres * (size_t)block + 1, sizeof *h->out);
+    h->cursor = xcalloc((size_t)nres + 1, sizeof *h->cursor);
+    h->gain = xcalloc((size_t)nres + 1, sizeof *h->gain);
+    h->ids = xcalloc((size_t)ncont + 1, sizeof *h->ids);
+    int r = 0;
+    for (int i = 0; i < S->nbodies; i++) {
+        const scbody *b = &S->bodies[i];
+        if (b->share >= 0)
+            continue;
+        surf_resonator_desc rd = surf_resonator_desc_init();
+        rd.modes = b->modes, rd.nmodes = b->nmodes, rd.npickups = 1, rd.quiet = b->quiet;
+        if (surf_add_resonator(h->w, &rd) != r)
+            return -1;
+        h->body_res[i] = r;
+        h->gain[r] = b->gain;
+        h->res_pool[r] = pool0 + r;
+        td[r].h = h, td[r].res = r;
+        pc[r] = wdrt_pool_config_init(&tap_class, 1);
+        pc[r].owned = 1;
+        pc[r].bind = tap_bind;
+        pc[r].data = &td[r];
+        pc[r].quiet = b->quiet;
+        pc[r].placed = b->placed;
+        memcpy(pc[r].pos, b->pos, sizeof b->pos);
+        pc[r].cost_ns = 1;
+        r++;
+    }
+    for (int i = 0; i < S->nbodies; i++) {
+        const scbody *b = &S->bodies[i];
+        if (b->share >= 0)
+            h->body_res[i] = h->body_res[b->share];
+        if (surf_add_surface(h->w, &b->surf) != i)
+            return -1;
+        surf_body_desc bd = {h->body_res[i], i, b->mass};
+        if (surf_add_body(h->w, &bd) != i)
+            return -1;
+    }
+    int cap = 0, slot = 0;
+    for (int i = 0; i < S->nev; i++) {
+        const scevent *x = &S->ev[i];
+        swent e;
+        memset(&e, 0, sizeof e);
+        e.a = x->ba, e.b = x->bb;
+        e.frame = frame_of(x->time, fs);
+        if (x->kind == SE_HIT) {
+            e.kind = 0;
+            e.hit.impulse = x->impulse, e.hit.vn = x->vn, e.hit.vt = x->vt;
+            sw_push(h, &cap, e);
+        } else if (x->kind == SE_CONTACT) {
+            /* started, then updated every block from its curves, stopped at its end */
+            e.slot = slot++;
+            uint64_t end = frame_of(x->until, fs);
+            for (uint64_t f = e.frame; f < end; f = (f / (uint64_t)block + 1) * (uint64_t)block) {
+                double t = (double)f / fs - x->time;
+                e.kind = f == e.frame ? 1 : 2;
+                e.frame = f;
+                double roll = scnum_at(&x->roll, t), slip = scnum_at(&x->slip, t), force = scnum_at(&x->force, t);
+                e.touch = surf_contact_rolling(roll, slip, force < 0 ? 0 : force);
+                sw_push(h, &cap, e);
+            }
+            e.kind = 3;
+            e.frame = end;
+            sw_push(h, &cap, e);
+        }
+    }
+    if (h->nev > 1)
+        qsort(h->ev, (size_t)h->nev, sizeof *h->ev, cmp_swent);
+    return 0;
+}
+
+static void sw_free(swhost *h) {
+    if (h->w)
+        surf_uninit(h->w, NULL);
+    free(h->res_pool);
+    free(h->body_res);
+    free(h->out);
+    free(h->cursor);
+    free(h->gain);
+    free(h->ids);
+    free(h->ev);
+}
+
+static int sw_resonators(const wdrt_scene *S) {
+    int n = 0;
+    for (int i = 0; i < S->nbodies; i++)
+        n += S->bodies[i].share < 0;
+    return n;
+}
+
 /* ---- the timeline ---- */
 
 /* pair = '(' ( 'v' | 'x' ) NODE NUMBER ')' */
@@ -1079,7 +1621,7 @@ static int impact(wdrt_scene *S, const sx *f, scevent *e) {
 /* event = '(' 'strike' VOICE pair+ ')' | '(' 'set' NAME PARAM value ')'
  *       | '(' 'gain' NAME value ')' | play | '(' 'stop' NAME ')' | impact */
 static int event(wdrt_scene *S, const sx *f, double t, scevent *e) {
-    static const char *const kinds[] = {"strike", "set", "gain", "play", "stop", "impact"};
+    static const char *const kinds[] = {"strike", "set", "gain", "play", "stop", "impact", "", "contact"};
     memset(e, 0, sizeof *e);
     e->time = t;
     e->at = f;
@@ -1087,11 +1629,16 @@ static int event(wdrt_scene *S, const sx *f, double t, scevent *e) {
     if (f->kind != SX_LIST || !f->head || f->head->kind != SX_SYM)
         return ERR(f, "expected an event: (strike ...), (set ...), (gain ...), (play ...) or (stop ...)");
     e->kind = -1;
-    for (int i = 0; i < 6; i++)
-        if (sx_is(f->head, kinds[i]))
+    for (int i = 0; i < 8; i++)
+        if (kinds[i][0] && sx_is(f->head, kinds[i]))
             e->kind = i;
     if (e->kind < 0)
-        return unknown(S, f->head, "event", f->head->text, kinds, 6);
+        return unknown(S, f->head, "event", f->head->text, kinds, 8);
+    if (e->kind == SE_CONTACT)
+        return body_contact(S, f, e);
+    if (e->kind == SE_IMPACT && f->len >= 3 && f->head->next->kind == SX_SYM &&
+        body_index(S, f->head->next->text) >= 0)
+        return body_hit(S, f, e);
     if (e->kind == SE_IMPACT)
         return impact(S, f, e);
     if (f->len < 2)
@@ -1154,6 +1701,7 @@ static const form forms[] = {
     {"sleep", f_sleep}, {"voice", f_voice},   {"at", f_at},       {"c", f_c},
     {"distance", f_distance}, {"air", f_air}, {"listener", f_listener}, {"wall", f_wall}, {"sources", f_sources},
     {"room", f_room},     {"complex", f_complex}, {"tree", f_tree}, {"include", f_include},
+    {"body", f_body},
 };
 #define NFORMS ((int)(sizeof forms / sizeof *forms))
 
@@ -1240,6 +1788,9 @@ void wdrt_scene_free(wdrt_scene *S) {
     }
     for (int i = 0; i < S->ncx; i++)
         complex_free(&S->cx[i]);
+    for (int i = 0; i < S->nbodies; i++)
+        free(S->bodies[i].modes);
+    free(S->bodies);
     free(S->cx);
     free(S->voices);
     free(S->walls);
@@ -1673,7 +2224,6 @@ typedef struct render {
     tt_class *tc;    /* the trees' classes, at the render's rate */
 } render;
 
-static uint64_t frame_of(double t, double fs) { return (uint64_t)llround(t * fs); }
 
 static wdrt_voice handle(const render *R, int vi) {
     return R->S->voices[vi].pool ? wdrt_engine_pool(R->e, vi) : wdrt_engine_voice(R->e, vi, 0);
@@ -1729,6 +2279,8 @@ static const scparam *motion_set(const wdrt_scene *S, int vi, int j) {
  * strike), all at its frame. */
 static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
     wdrt_engine *e = R->e;
+    if (x->kind == SE_HIT || x->kind == SE_CONTACT)
+        return WDRT_OK;
     wdrt_voice v = handle(R, x->voice);
     int ids[WDRT_STRIKE_MAX];
     double vals[WDRT_STRIKE_MAX];
@@ -1753,6 +2305,9 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
         return wdrt_engine_gain(e, f, v, x->set.val.v);
     case SE_STOP:
         return wdrt_engine_stop(e, f, v);
+    case SE_HIT:
+    case SE_CONTACT: /* the world's timeline (section "bodies") */
+        return WDRT_OK;
     case SE_IMPACT:
     case SE_PLAY: {
         wdrt_result r;
@@ -1887,7 +2442,7 @@ static uint64_t last_frame(const render *R) {
     const wdrt_scene *S = R->S;
     double t = 0;
     for (int i = 0; i < S->nev; i++) {
-        double te = S->ev[i].time;
+        double te = S->ev[i].kind == SE_CONTACT ? S->ev[i].until : S->ev[i].time;
         if (S->ev[i].set.val.curve)
             te += curve_end(S->ev[i].set.val.curve);
         t = te > t ? te : t;
@@ -1919,6 +2474,8 @@ static void space_config(const wdrt_scene *S, wdrt_space_config *sp) {
             n += S->voices[i].pool ? S->voices[i].pool : 1;
     for (int i = 0; i < S->ncx; i++)
         n += S->cx[i].placed;
+    for (int i = 0; i < S->nbodies; i++)
+        n += S->bodies[i].placed && S->bodies[i].share < 0;
     int amb = 0;
     for (int i = 0; i < S->nvoices; i++)
         amb |= S->voices[i].ambient > 0;
@@ -1938,7 +2495,11 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     if (!S || !frames || !nframes || !nch)
         return WDRT_INVALID_ARGS;
     render R;
-    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + (size_t)S->ncx + 1, sizeof *pc);
+    int nres = sw_resonators(S);
+    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + (size_t)S->ncx + (size_t)nres + 1, sizeof *pc);
+    tap_data *td = xcalloc((size_t)nres + 1, sizeof *td);
+    swhost sw;
+    memset(&sw, 0, sizeof sw);
     cx_source *srcs = xcalloc((size_t)S->ncx + 1, sizeof *srcs);
     double **pv = xcalloc((size_t)S->nvoices + 1, sizeof *pv);
     wdrt_result res = WDRT_INVALID_ARGS;
@@ -1947,7 +2508,15 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     if (render_init(&R, S, o, pc, pv) != 0)
         goto done;
     complex_pools(S, pc + S->nvoices, srcs);
-    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices + S->ncx, pc);
+    if (sw_build(S, R.fs, 64, S->nvoices + S->ncx, &sw, pc + S->nvoices + S->ncx, td) != 0) {
+        fprintf(stderr, "wdrt: error: the scene's bodies could not be built\n");
+        goto done;
+    }
+    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices + S->ncx + nres, pc);
+    if (nres) {
+        ec.excite = sw_excite;
+        ec.excite_user = &sw;
+    }
     ec.queue = 1 << 16;
     ec.pending = 1 << 16;
     ec.sleep = S->sleep && !(o && o->nosleep);
@@ -2029,5 +2598,7 @@ done:
     for (int i = 0; R.tc && i < S->nvoices; i++)
         tt_class_uninit(&R.tc[i]);
     free(R.tc);
+    sw_free(&sw);
+    free(td);
     return res;
 }

@@ -201,6 +201,14 @@ typedef struct wdrt_engine_config {
     int npools;
     const wdrt_pool_config *pools;
     wdrt_space_config space;
+    /* The excitations phase: called on the audio thread at the start of
+     * every block, before the voices, with the block's first frame and
+     * length (what bodies in contact and impacts excite, computed once
+     * for all the sources they feed).  It sets wake[p] to 1 for each pool
+     * p whose voices it excited: they wake from sleep.  Must be real-time
+     * safe.  NULL: no such phase. */
+    void (*excite)(void *user, uint64_t frame, int nframes, unsigned char *wake);
+    void *excite_user;
 } wdrt_engine_config;
 
 /* Defaults: 64-frame blocks, queues of 4096, no budget, sleep on.

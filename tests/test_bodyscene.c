@@ -1,0 +1,261 @@
+/*
+ * test_bodyscene.c - bodies in scenes (surf.h through scene.c and the
+ * engine's excitations phase): an impact heard at its frame and as the
+ * world alone makes it, a resonator that sleeps and wakes exactly as a
+ * fresh one, bodies sharing a resonator, a placed body heard d/c late,
+ * contacts with curves, and the errors of the body forms.
+ */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "surf.h"
+#include "testlib.h"
+#include "wdrt.h"
+
+#define FS 48000.0
+
+static char g_dir[64];
+
+static int setup(void **s) {
+    (void)s;
+    strcpy(g_dir, "/tmp/wdrt-bodyscene.XXXXXX");
+    return mkdtemp(g_dir) ? 0 : -1;
+}
+
+static int teardown(void **s) {
+    (void)s;
+    tl_remove_dir(g_dir);
+    return 0;
+}
+
+static double *render(const char *text, long *n, wdrt_engine_stats *st) {
+    const char *path = tl_write_file(g_dir, "s.wds", text);
+    char err[2048] = "";
+    wdrt_scene *s = NULL;
+    wdrt_result r = wdrt_scene_load(path, &s, err, sizeof err);
+    if (r != WDRT_OK)
+        fprintf(stderr, "%s", err);
+    assert_int_equal(r, WDRT_OK);
+    double *y = NULL, rate;
+    int nch;
+    assert_int_equal(wdrt_scene_render(s, NULL, &y, n, &nch, &rate, st), WDRT_OK);
+    assert_int_equal(nch, 1);
+    wdrt_scene_free(s);
+    return y;
+}
+
+static void load_error(const char *text, char *err, size_t len) {
+    const char *path = tl_write_file(g_dir, "e.wds", text);
+    wdrt_scene *s = NULL;
+    err[0] = 0;
+    if (wdrt_scene_load(path, &s, err, len) == WDRT_OK)
+        wdrt_scene_free(s);
+}
+
+/* The same impact through a world of its own, frame by frame. */
+static void world_alone(double *y, long n, long at) {
+    surf_config cfg = surf_config_init(FS);
+    cfg.block = 64;
+    surf_world *w;
+    assert_int_equal(surf_init(&cfg, NULL, &w), WDRT_OK);
+    surf_mode m[2] = {{440, 0.5, {1}}, {1250, 0.3, {0.5}}};
+    surf_resonator_desc rd = surf_resonator_desc_init();
+    rd.modes = m, rd.nmodes = 2, rd.quiet = 1e-5;
+    assert_int_equal(surf_add_resonator(w, &rd), 0);
+    surf_mode f[1] = {{90, 0.1, {1}}};
+    rd.modes = f, rd.nmodes = 1;
+    assert_int_equal(surf_add_resonator(w, &rd), 1);
+    surf_surface_desc sd = surf_surface_desc_init();
+    sd.relief.kind = SURF_RELIEF_NOISE, sd.relief.scale = 1e-4;
+    sd.hardness = 1e6;
+    assert_int_equal(surf_add_surface(w, &sd), 0);
+    sd.hardness = 1e8;
+    assert_int_equal(surf_add_surface(w, &sd), 1);
+    surf_body_desc b0 = {0, 0, 0.05}, b1 = {1, 1, 5};
+    assert_int_equal(surf_add_body(w, &b0), 0);
+    assert_int_equal(surf_add_body(w, &b1), 1);
+    surf_impact_data hit = {0.01, 0, 0};
+    for (long i = 0; i < n; i += 64) {
+        if (i == at)
+            surf_impact(w, 0, 0, 1, &hit);
+        int m2 = surf_process(w, NULL, (int)(n - i < 64 ? n - i : 64));
+        const double *o = surf_output(w, 0, 0);
+        for (int k = 0; k < m2; k++)
+            y[i + k] = o ? o[k] : 0;
+    }
+    surf_uninit(w, NULL);
+}
+
+static const char *two_bodies = "(length 1) (sleep off)\n"
+                                "(body bell (modes (440 0.5 1) (1250 0.3 0.5)) (mass 0.05) (hardness 1e6) (quiet -100))\n"
+                                "(body floor (modes (90 0.1 1)) (mass 5) (hardness 1e8) (gain 0) (quiet -100))\n";
+
+static void test_impact_as_world_alone(void **st) {
+    (void)st;
+    char text[1024];
+    snprintf(text, sizeof text, "%s(at %.10f (impact bell floor (impulse 0.01)))\n", two_bodies, 6400 / FS);
+    long n;
+    double *y = render(text, &n, NULL);
+    double *z = calloc((size_t)n, sizeof *z);
+    world_alone(z, n, 6400);
+    double err = 0, pk = 0;
+    for (long i = 0; i < n; i++)
+        err = fmax(err, fabs(y[i] - z[i])), pk = fmax(pk, fabs(z[i]));
+    printf("impact in a scene vs the world alone: %.3g of peak %.3g\n", err, pk);
+    assert_true(pk > 1e-4);
+    assert_true(err <= 1e-12 * pk);
+    for (long i = 0; i < 6400; i++)
+        assert_true(y[i] == 0); /* nothing before its frame */
+    assert_true(y[6401] != 0);
+    free(y);
+    free(z);
+}
+
+static void test_sleep_and_wake(void **st) {
+    (void)st;
+    /* struck at 0.1 s and again at 1.6 s: between, it falls quiet and
+     * sleeps; after the second strike it sounds as if only that one had
+     * happened (the first's tail is 10^-21 by then) */
+    long n, m;
+    wdrt_engine_stats s1, s2;
+    double *a = render("(length 2.2)\n"
+                       "(body bell (modes (440 0.2 1)) (mass 0.05) (hardness 1e6) (quiet -60))\n"
+                       "(body floor (modes (90 0.1 1)) (mass 5) (hardness 1e8) (gain 0))\n"
+                       "(at 0.1 (impact bell floor (impulse 0.01)))\n"
+                       "(at 1.6 (impact bell floor (impulse 0.01)))\n",
+                       &n, &s1);
+    double *b = render("(length 2.2)\n"
+                       "(body bell (modes (440 0.2 1)) (mass 0.05) (hardness 1e6) (quiet -60))\n"
+                       "(body floor (modes (90 0.1 1)) (mass 5) (hardness 1e8) (gain 0))\n"
+                       "(at 1.6 (impact bell floor (impulse 0.01)))\n",
+                       &m, &s2);
+    assert_int_equal(n, m);
+    assert_true(s1.sleeps >= 1 && s1.wakes >= 1);
+    double err = 0, pk = 0;
+    for (long i = (long)(1.6 * FS); i < n; i++)
+        err = fmax(err, fabs(a[i] - b[i])), pk = fmax(pk, fabs(b[i]));
+    printf("after a sleep: %.3g of peak %.3g (%llu sleeps, %llu wakes)\n", err, pk, (unsigned long long)s1.sleeps,
+           (unsigned long long)s1.wakes);
+    assert_true(pk > 1e-4 && err <= 1e-12 * pk);
+    double mid = 0;
+    for (long i = (long)(1.2 * FS); i < (long)(1.6 * FS); i++)
+        mid = fmax(mid, fabs(a[i]));
+    assert_true(mid == 0); /* asleep: silent, not computed */
+    free(a);
+    free(b);
+}
+
+static void test_shared_resonator(void **st) {
+    (void)st;
+    /* two marbles ringing one jar: the render of both impacts is the sum
+     * of each alone (the world is linear in its excitations) */
+    const char *head = "(length 0.6) (sleep off)\n"
+                       "(body jar (modes (820 0.8 1) (1910 0.5 0.6)) (mass 0.4) (hardness 1e8) (quiet -200))\n"
+                       "(body m1 (share jar) (mass 0.005) (hardness 5e8) (relief none))\n"
+                       "(body m2 (share jar) (mass 0.008) (hardness 2e8) (relief none))\n";
+    char t[1024];
+    long n;
+    snprintf(t, sizeof t, "%s(at 0.1 (impact m1 jar (impulse 0.002)))\n(at 0.23 (impact m2 jar (impulse 0.003)))\n", head);
+    double *ab = render(t, &n, NULL);
+    snprintf(t, sizeof t, "%s(at 0.1 (impact m1 jar (impulse 0.002)))\n", head);
+    double *a = render(t, &n, NULL);
+    snprintf(t, sizeof t, "%s(at 0.23 (impact m2 jar (impulse 0.003)))\n", head);
+    double *b = render(t, &n, NULL);
+    double err = 0, pk = 0;
+    for (long i = 0; i < n; i++)
+        err = fmax(err, fabs(ab[i] - a[i] - b[i])), pk = fmax(pk, fabs(ab[i]));
+    printf("shared jar: sum of each alone to %.3g of peak %.3g\n", err, pk);
+    assert_true(pk > 1e-5 && err <= 1e-12 * pk);
+    free(ab);
+    free(a);
+    free(b);
+}
+
+static void test_placed_body(void **st) {
+    (void)st;
+    /* a body 34.3 m away is heard 0.1 s late, as it sounds (no distance
+     * model, no air) */
+    long n, m;
+    double *a = render("(length 0.6) (sleep off) (distance none) (air off) (listener (pos 0 0 0))\n"
+                       "(body bell (modes (440 0.5 1)) (mass 0.05) (hardness 1e6) (pos 0 34.3 0))\n"
+                       "(body floor (modes (90 0.1 1)) (mass 5) (gain 0))\n"
+                       "(at 0.1 (impact bell floor (impulse 0.01)))\n",
+                       &n, NULL);
+    double *b = render("(length 0.6) (sleep off)\n"
+                       "(body bell (modes (440 0.5 1)) (mass 0.05) (hardness 1e6))\n"
+                       "(body floor (modes (90 0.1 1)) (mass 5) (gain 0))\n"
+                       "(at 0.1 (impact bell floor (impulse 0.01)))\n",
+                       &m, NULL);
+    long d = (long)llround(34.3 / 343 * FS);
+    double err = 0, pk = 0;
+    for (long i = d; i < n; i++)
+        err = fmax(err, fabs(a[i] - b[i - d])), pk = fmax(pk, fabs(b[i - d]));
+    printf("placed body: %ld frames late, %.3g of peak %.3g\n", d, err, pk);
+    assert_true(err <= 1e-9 * pk);
+    free(a);
+    free(b);
+}
+
+static void test_contact_curves(void **st) {
+    (void)st;
+    /* a contact sounds while it lasts and its sound follows its force: the
+     * puck slides (no rolling), so its needle reads the table's relief at
+     * the slip speed and the table rings */
+    long n;
+    double *y = render("(length 1.5) (sleep off)\n"
+                       "(body puck (modes (700 0.05 1)) (mass 0.2) (gain 0))\n"
+                       "(body table (modes (150 0.05 1) (900 0.05 1)) (mass 20) (relief noise 0.0001))\n"
+                       "(at 0.2 (contact puck table (force (curve (0 0) (0.5 1) (1 0))) (slip 0.5) (until 1.2)))\n",
+                       &n, NULL);
+    double before = 0, peak = 0, after = 0, rise = 0;
+    for (long i = 0; i < (long)(0.2 * FS); i++)
+        before = fmax(before, fabs(y[i]));
+    for (long i = (long)(0.6 * FS); i < (long)(0.8 * FS); i++)
+        peak = fmax(peak, fabs(y[i]));
+    for (long i = (long)(0.25 * FS); i < (long)(0.3 * FS); i++)
+        rise = fmax(rise, fabs(y[i]));
+    for (long i = (long)(1.45 * FS); i < n; i++)
+        after = fmax(after, fabs(y[i]));
+    printf("contact: before %.3g, at 0.05 s %.3g, at its strongest %.3g, after %.3g\n", before, rise, peak, after);
+    assert_true(before == 0);
+    assert_true(peak > 1e-6);
+    assert_true(rise < 0.5 * peak);   /* the force is a tenth of its top there */
+    assert_true(after < 1e-3 * peak); /* ended: rung down (T60 0.05 s) */
+    free(y);
+}
+
+static void test_body_errors(void **st) {
+    (void)st;
+    char err[2048];
+    load_error("(body a (mass 1))\n", err, sizeof err);
+    assert_non_null(strstr(err, "e.wds:1:7: error: body a needs its (modes ...) or (share BODY)"));
+    load_error("(body a (modes (440 0.5 1)))\n(body b (share c))\n", err, sizeof err);
+    assert_non_null(strstr(err, "e.wds:2:16: error: unknown body 'c'"));
+    load_error("(body a (modes (440 -1 1)))\n", err, sizeof err);
+    assert_non_null(strstr(err, "e.wds:1:16: error: a mode has"));
+    load_error("(body a (modes (440 1 1)))\n(body b (modes (40 1 1)))\n(at 1 (contact a b (force 1)))\n", err,
+               sizeof err);
+    assert_non_null(strstr(err, "e.wds:3:7: error: a contact needs its (force F) and (until T)"));
+    load_error("(body a (modes (440 1 1)))\n(body b (modes (40 1 1)))\n(at 1 (impact a b))\n", err, sizeof err);
+    assert_non_null(strstr(err, "e.wds:3:7: error: an impact between bodies needs its (impulse J)"));
+    load_error("(body a (modes (440 1 1)) (relief bumpy 1))\n", err, sizeof err);
+    assert_non_null(strstr(err, "e.wds:1:35: error: unknown relief 'bumpy'"));
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_impact_as_world_alone), cmocka_unit_test(test_sleep_and_wake),
+        cmocka_unit_test(test_shared_resonator),      cmocka_unit_test(test_placed_body),
+        cmocka_unit_test(test_contact_curves),        cmocka_unit_test(test_body_errors),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
