@@ -1967,6 +1967,10 @@ static void revive(wdrt_engine *e) {
 static void end_block(wdrt_engine *e) {
     for (int i = 0; i < e->nactive; i++) {
         inst *v = &e->inst[e->active[i]];
+        if (e->excite && e->pwake[v->pool]) { /* excited: its floor is what it holds, as after a strike */
+            double E = cls_of(e, v)->energy(v->st);
+            v->eref = E > v->eref ? E : v->eref;
+        }
         v->last = v->level;
         double pk = e->pools[v->pool].cfg.placed ? v->peak * v->sgain : v->peak; /* what arrives */
         v->level = pk > v->level * e->rel ? pk : v->level * e->rel;

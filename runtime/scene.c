@@ -997,6 +997,10 @@ static uint64_t frame_of(double t, double fs) { return (uint64_t)llround(t * fs)
 typedef struct scbody {
     const char *name;
     const sx *at;
+    char *netlist;      /* a compiled voice as its resonator, or NULL */
+    const sx *in_name, *out_name; /* (input NAME) (output NAME) of that voice */
+    const wdv_class *cls;
+    int input, output;
     surf_mode *modes;
     int nmodes;
     int share;          /* the body whose resonator it rings, or -1 */
@@ -1066,7 +1070,7 @@ static int body_modes(wdrt_scene *S, scbody *b, const sx *p) {
 /* A property of a body */
 static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
     static const char *const props[] = {"modes", "share", "mass", "hardness", "damping", "relief", "roll",
-                                        "slip", "gain", "quiet", "pos", "skid"};
+                                        "slip", "gain", "quiet", "pos", "skid", "voice", "input", "output"};
     if (p->kind != SX_LIST || !p->head || p->head->kind != SX_SYM)
         return ERR(p, "expected a property such as (modes ...) or (mass M)");
     const char *k = p->head->text;
@@ -1074,6 +1078,23 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
     double x;
     if (!strcmp(k, "modes"))
         return body_modes(S, b, p);
+    if (!strcmp(k, "voice")) { /* (voice "file.wdn"): rings a compiled voice through its force input */
+        if (arity(S, p, 2, 2, "(voice \"file.wdn\")"))
+            return -1;
+        if (a->kind != SX_STR)
+            return ERR(a, "expected the netlist's file name in double quotes, found a %s", kind_of(a));
+        free(b->netlist);
+        b->netlist = resolve_path(S, a->text);
+        return 0;
+    }
+    if (!strcmp(k, "input") || !strcmp(k, "output")) {
+        if (arity(S, p, 2, 2, k[0] == 'i' ? "(input NAME)" : "(output NAME)"))
+            return -1;
+        if (a->kind != SX_SYM)
+            return ERR(a, "expected the name of a voice's %s, found a %s", k, kind_of(a));
+        *(k[0] == 'i' ? &b->in_name : &b->out_name) = a;
+        return 0;
+    }
     if (!strcmp(k, "share")) {
         if (arity(S, p, 2, 2, "(share BODY)") || body_ref(S, a, &b->share))
             return -1;
@@ -1177,10 +1198,12 @@ static int f_body(wdrt_scene *S, const sx *f) {
     for (const sx *p = n->next; p; p = p->next)
         if (body_prop(S, b, p))
             return -1;
-    if (b->share < 0 && b->nmodes == 0)
-        return ERR(n, "body %s needs its (modes ...) or (share BODY)", b->name);
-    if (b->share >= 0 && b->nmodes)
-        return ERR(n, "body %s has modes of its own and shares another's", b->name);
+    if (b->share < 0 && b->nmodes == 0 && !b->netlist)
+        return ERR(n, "body %s needs its (modes ...), a (voice \"file.wdn\") or (share BODY)", b->name);
+    if ((b->share >= 0) + (b->nmodes > 0) + (b->netlist != NULL) > 1)
+        return ERR(n, "body %s rings one resonator: its modes, a voice, or another's", b->name);
+    if (b->netlist)
+        add_nl(S, -1 - (S->nbodies - 1), -1);
     if (b->nmodes > SURF_MAX_MODES_FILE)
         return ERR(n, "a body has at most %d modes", SURF_MAX_MODES_FILE);
     return 0;
@@ -1273,6 +1296,7 @@ typedef struct swhost {
     int block;
     int *cursor;        /* per resonator: frames its tap has read of the segment */
     double *gain;       /* per resonator */
+    wdv_class *vc;      /* per resonator: the class of a body's voice tap */
 } swhost;
 
 typedef struct tap_state {
@@ -1321,10 +1345,68 @@ static int tap_set_ic(void *state, int n, const int *ids, const double *v) {
 typedef struct tap_data {
     swhost *h;
     int res;
+    const scbody *body; /* a body that rings a compiled voice, or NULL */
 } tap_data;
+
+/* A body's voice, rung through its force input by what the world excites
+ * its (external) resonator with: the voice's state after a header. */
+typedef struct vtap_state {
+    swhost *h;
+    int res, input, output;
+    const wdv_class *cls;
+    double fs;
+} vtap_state;
+
+static size_t vtap_head(void) { return (sizeof(vtap_state) + 15) & ~(size_t)15; }
+
+static void vtap_init(void *state, double fs) {
+    vtap_state *t = state;
+    memset(t, 0, sizeof *t);
+    t->fs = fs;
+}
+static void vtap_reset(void *state) {
+    vtap_state *t = state;
+    if (t->cls)
+        t->cls->reset((char *)state + vtap_head());
+}
+static void vtap_process(void *state, const double *const *in, double *const *out, int n) {
+    (void)in;
+    vtap_state *t = state;
+    if (!t->cls) {
+        memset(out[0], 0, sizeof(double) * (size_t)(n > 0 ? n : 0));
+        return;
+    }
+    const wdv_class *c = t->cls;
+    char *inner = (char *)state + vtap_head();
+    double *scratch = (double *)(inner + ((c->state_size + 15) & ~(size_t)15)); /* zeros, then outputs */
+    const double *ip[64];
+    double *op[64];
+    for (int k = 0; k < c->n_inputs && k < 64; k++)
+        ip[k] = scratch;
+    if (t->h) {
+        int cur = t->h->cursor[t->res];
+        ip[t->input] = t->h->out + (size_t)t->res * (size_t)t->h->block + cur;
+        t->h->cursor[t->res] = cur + n;
+    }
+    for (int k = 0; k < c->n_outputs && k < 64; k++)
+        op[k] = k == t->output ? out[0] : scratch + 64 * (1 + (size_t)k);
+    c->process(inner, ip, op, n);
+    memset(scratch, 0, sizeof(double) * 64);
+}
+static double vtap_energy(const void *state) {
+    const vtap_state *t = state;
+    return t->cls ? t->cls->energy((const char *)state + vtap_head()) : 0;
+}
 static void tap_bind(void *state, const void *data) {
-    tap_state *t = state;
     const tap_data *d = data;
+    if (d->body) { /* a voice tap */
+        vtap_state *v = state;
+        v->h = d->h, v->res = d->res, v->cls = d->body->cls;
+        v->input = d->body->input, v->output = d->body->output;
+        v->cls->init((char *)state + vtap_head(), v->fs);
+        return;
+    }
+    tap_state *t = state;
     t->h = d->h;
     t->res = d->res;
 }
@@ -1369,6 +1451,8 @@ static void sw_excite(void *user, uint64_t t0, int nb, unsigned char *wake) {
             double *o = h->out + (size_t)r * (size_t)h->block + done;
             for (int i = 0; i < m; i++)
                 o[i] = y ? h->gain[r] * y[i] : 0;
+            if (y && h->vc[r].process) /* a voice the world excites wakes */
+                wake[h->res_pool[r]] = 1;
         }
         done += m;
         if (m <= 0)
@@ -1432,20 +1516,34 @@ static int sw_build(const wdrt_scene *S, double fs, int block, int pool0, swhost
     h->cursor = xcalloc((size_t)nres + 1, sizeof *h->cursor);
     h->gain = xcalloc((size_t)nres + 1, sizeof *h->gain);
     h->ids = xcalloc((size_t)ncont + 1, sizeof *h->ids);
+    h->vc = xcalloc((size_t)nres + 1, sizeof *h->vc);
     int r = 0;
     for (int i = 0; i < S->nbodies; i++) {
         const scbody *b = &S->bodies[i];
         if (b->share >= 0)
             continue;
+        if (b->netlist) { /* rings its voice: the world hands it the force */
+            if (!b->cls || surf_add_external(h->w) != r)
+                return -1;
+            wdv_class *c = &h->vc[r];
+            *c = tap_class;
+            c->name = b->cls->name;
+            c->state_size = vtap_head() + ((b->cls->state_size + 15) & ~(size_t)15) +
+                            sizeof(double) * 64 * (1 + (size_t)b->cls->n_outputs);
+            c->init = vtap_init, c->reset = vtap_reset, c->process = vtap_process, c->energy = vtap_energy;
+            td[r].body = b;
+        }
         surf_resonator_desc rd = surf_resonator_desc_init();
         rd.modes = b->modes, rd.nmodes = b->nmodes, rd.npickups = 1, rd.quiet = b->quiet;
-        if (surf_add_resonator(h->w, &rd) != r)
+        if (!b->netlist && surf_add_resonator(h->w, &rd) != r)
             return -1;
         h->body_res[i] = r;
-        h->gain[r] = b->gain;
+        h->gain[r] = b->netlist ? 1 : b->gain;
         h->res_pool[r] = pool0 + r;
         td[r].h = h, td[r].res = r;
-        pc[r] = wdrt_pool_config_init(&tap_class, 1);
+        pc[r] = wdrt_pool_config_init(b->netlist ? &h->vc[r] : &tap_class, 1);
+        if (b->netlist)
+            pc[r].gain = b->gain, pc[r].cost_ns = 0; /* measured */
         pc[r].owned = 1;
         pc[r].bind = tap_bind;
         pc[r].data = &td[r];
@@ -1507,6 +1605,7 @@ static void sw_free(swhost *h) {
     free(h->cursor);
     free(h->gain);
     free(h->ids);
+    free(h->vc);
     free(h->ev);
 }
 
@@ -1718,6 +1817,7 @@ static int read_form(wdrt_scene *S, const sx *f) {
 }
 
 static int bind_voice(wdrt_scene *S, int i, const wdv_class *cls);
+static int bind_body(wdrt_scene *S, scbody *b, const wdv_class *cls);
 static int check_motions(wdrt_scene *S);
 
 static int cmp_event(const void *a, const void *b) {
@@ -1789,7 +1889,7 @@ void wdrt_scene_free(wdrt_scene *S) {
     for (int i = 0; i < S->ncx; i++)
         complex_free(&S->cx[i]);
     for (int i = 0; i < S->nbodies; i++)
-        free(S->bodies[i].modes);
+        free(S->bodies[i].modes), free(S->bodies[i].netlist);
     free(S->bodies);
     free(S->cx);
     free(S->voices);
@@ -1808,11 +1908,15 @@ int wdrt_scene_nvoices(const wdrt_scene *s) { return s ? s->nnl : 0; }
 const char *wdrt_scene_voice_name(const wdrt_scene *s, int i) {
     if (!s || i < 0 || i >= s->nnl)
         return NULL;
+    if (s->nl[i].vi < 0) /* a body's voice */
+        return s->bodies[-1 - s->nl[i].vi].name;
     return s->voices[s->nl[i].vi].name;
 }
 const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i) {
     if (!s || i < 0 || i >= s->nnl)
         return NULL;
+    if (s->nl[i].vi < 0)
+        return s->bodies[-1 - s->nl[i].vi].netlist;
     const scvoice *v = &s->voices[s->nl[i].vi];
     return s->nl[i].k < 0 ? v->netlist : tt_prog_voice_path(v->prog, s->nl[i].k);
 }
@@ -1857,11 +1961,42 @@ wdrt_result wdrt_scene_bind(wdrt_scene *S, int i, const wdv_class *cls, char *er
     if (!S || i < 0 || i >= S->nnl || !cls)
         return WDRT_INVALID_ARGS;
     S->err = err, S->errlen = errlen;
+    if (S->nl[i].vi < 0)
+        return bind_body(S, &S->bodies[-1 - S->nl[i].vi], cls) ? WDRT_SYNTAX : WDRT_OK;
     if (S->nl[i].k >= 0) {
         scvoice *v = &S->voices[S->nl[i].vi];
         return tt_prog_bind_voice(v->prog, S->nl[i].k, cls, err, errlen) ? WDRT_SYNTAX : WDRT_OK;
     }
     return bind_voice(S, S->nl[i].vi, cls) ? WDRT_SYNTAX : WDRT_OK;
+}
+
+/* A body's voice: its force input and the output heard. */
+static int port_of(wdrt_scene *S, const wdv_port *ports, int n, const sx *name, const char *what, int *k) {
+    *k = 0;
+    if (!name)
+        return n > 0 ? 0 : -1;
+    const char *names[64];
+    for (int j = 0; j < n; j++) {
+        if (j < 64)
+            names[j] = ports[j].name;
+        if (!strcmp(ports[j].name, name->text)) {
+            *k = j;
+            return 0;
+        }
+    }
+    return unknown(S, name, what, name->text, names, n < 64 ? n : 64);
+}
+
+static int bind_body(wdrt_scene *S, scbody *b, const wdv_class *cls) {
+    if (cls->n_inputs < 1)
+        return ERR(b->at, "voice %s has no input for the force that rings it", cls->name);
+    if (cls->n_outputs < 1)
+        return ERR(b->at, "voice %s has no output to hear", cls->name);
+    if (port_of(S, cls->inputs, cls->n_inputs, b->in_name, "input", &b->input) ||
+        port_of(S, cls->outputs, cls->n_outputs, b->out_name, "output", &b->output))
+        return -1;
+    b->cls = cls;
+    return 0;
 }
 
 static int bind_voice(wdrt_scene *S, int i, const wdv_class *cls) {

@@ -67,6 +67,7 @@ typedef struct resonator {
     double damp;      /* D applied now, 1/s */
     double damp_next; /* accumulated for the coming block */
     int awake, fading;
+    int external;     /* rings outside the world: its output is its input force */
     long fpos;        /* samples of the fade done */
     int has_input;    /* in[] holds this block's input */
     int live;         /* the pickups hold this block's output */
@@ -390,6 +391,15 @@ int surf_add_resonator(surf_world *w, const surf_resonator_desc *d) {
 }
 
 static resonator *get_res(const surf_world *w, int i) { return w && i >= 0 && i < w->nres ? &w->res[i] : NULL; }
+
+int surf_add_external(surf_world *w) {
+    surf_resonator_desc d = surf_resonator_desc_init();
+    d.quiet = 0;
+    int i = surf_add_resonator(w, &d);
+    if (i >= 0)
+        w->res[i].external = 1;
+    return i;
+}
 
 wdrt_result surf_resonator_set_active_modes(surf_world *w, int res, int n) {
     resonator *r = get_res(w, res);
@@ -1034,6 +1044,13 @@ static void fade(const surf_world *w, resonator *r, int n) {
 /* One resonator's block: wake on input, ring, then the sleep logic. */
 static void run_resonator(surf_world *w, resonator *r, int n) {
     r->live = 0;
+    if (r->external) { /* the force, for a resonator outside the world to ring with */
+        if (r->has_input)
+            memcpy(r->out, r->in, (size_t)n * sizeof *r->out);
+        r->live = r->has_input;
+        r->awake = 0;
+        return;
+    }
     if (r->has_input)
         r->awake = 1;
     if (!r->awake)

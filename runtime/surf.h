@@ -234,6 +234,14 @@ SURF_HIDDEN surf_resonator_desc surf_resonator_desc_init(void);
  * allocation; O(modes^2): call at set-up, off the audio thread. */
 SURF_HIDDEN int surf_add_resonator(surf_world *w, const surf_resonator_desc *d);
 
+/* Adds a resonator that rings outside the world (a compiled voice with a
+ * force input, say): it has no modes; its channel 0 (surf_output) is the
+ * force, N, that its bodies' surfaces excite it with in each frame of the
+ * last block, or NULL when none did.  It never sleeps or is awake in the
+ * world: the voice it feeds does.  Returns its index, or as
+ * surf_add_resonator.  Not for the audio thread. */
+SURF_HIDDEN int surf_add_external(surf_world *w);
+
 typedef enum surf_relief_kind {
     SURF_RELIEF_NONE,    /* smooth: reads 0 */
     SURF_RELIEF_NOISE,   /* a random value in [-amp, amp] every scale m */

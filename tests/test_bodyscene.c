@@ -237,7 +237,7 @@ static void test_body_errors(void **st) {
     (void)st;
     char err[2048];
     load_error("(body a (mass 1))\n", err, sizeof err);
-    assert_non_null(strstr(err, "e.wds:1:7: error: body a needs its (modes ...) or (share BODY)"));
+    assert_non_null(strstr(err, "e.wds:1:7: error: body a needs its (modes ...), a (voice \"file.wdn\") or (share BODY)"));
     load_error("(body a (modes (440 0.5 1)))\n(body b (share c))\n", err, sizeof err);
     assert_non_null(strstr(err, "e.wds:2:16: error: unknown body 'c'"));
     load_error("(body a (modes (440 -1 1)))\n", err, sizeof err);
@@ -251,11 +251,69 @@ static void test_body_errors(void **st) {
     assert_non_null(strstr(err, "e.wds:1:35: error: unknown relief 'bumpy'"));
 }
 
+static void test_voice_body(void **st) {
+    (void)st;
+    /* the textbook oscillator (netlists/msd.wdn, 71.2 Hz) rung through its
+     * force input by an impact: silent before, ringing after at its own
+     * frequency, asleep once it has died away */
+    tl_voice v;
+    assert_int_equal(tl_voice_build("netlists/msd.wdn", 0, &v), 0);
+    char text[1024];
+    char cwd[512];
+    assert_non_null(getcwd(cwd, sizeof cwd));
+    snprintf(text, sizeof text,
+             "(body mass (voice \"%s/netlists/msd.wdn\") (input f) (output vel) (mass 0.1) (hardness 1e6))\n"
+             "(body hammer (modes (3000 0.01 1)) (mass 0.02) (hardness 1e6) (gain 0))\n"
+             "(at 0.1 (impact hammer mass (impulse 0.01)))\n",
+             cwd);
+    const char *path = tl_write_file(g_dir, "v.wds", text);
+    char err[2048] = "";
+    wdrt_scene *s;
+    assert_int_equal(wdrt_scene_load(path, &s, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_nvoices(s), 1);
+    assert_string_equal(wdrt_scene_voice_name(s, 0), "mass");
+    assert_int_equal(wdrt_scene_bind(s, 0, v.cls, err, sizeof err), WDRT_OK);
+    double *y, rate;
+    long n;
+    int nch;
+    wdrt_engine_stats es;
+    assert_int_equal(wdrt_scene_render(s, NULL, &y, &n, &nch, &rate, &es), WDRT_OK);
+    long f = (long)(0.1 * FS);
+    double before = 0, pk = 0;
+    for (long i = 0; i < f; i++)
+        before = fmax(before, fabs(y[i]));
+    /* zero crossings over 0.2 s after the strike: 71.2 Hz */
+    int zc = 0;
+    for (long i = f + 100; i < f + 100 + (long)(0.2 * FS); i++) {
+        zc += (y[i] > 0) != (y[i - 1] > 0);
+        pk = fmax(pk, fabs(y[i]));
+    }
+    printf("voice body: before %.3g, peak %.3g, %d crossings in 0.2 s (71.2 Hz: %.1f), %.2f s long, %llu sleeps\n",
+           before, pk, zc, 2 * 71.2 * 0.2, n / FS, (unsigned long long)es.sleeps);
+    assert_true(before == 0);
+    assert_true(pk > 1e-6);
+    assert_true(abs(zc - (int)lround(2 * 71.2 * 0.2)) <= 1);
+    assert_true(es.sleeps >= 1 && n < (long)(20 * FS)); /* it rang down and the scene ended */
+    free(y);
+    /* a voice without that input */
+    snprintf(text, sizeof text, "(body mass (voice \"%s/netlists/msd.wdn\") (input g))\n", cwd);
+    path = tl_write_file(g_dir, "w.wds", text);
+    wdrt_scene *s2;
+    assert_int_equal(wdrt_scene_load(path, &s2, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_bind(s2, 0, v.cls, err, sizeof err), WDRT_SYNTAX);
+    assert_non_null(strstr(err, "w.wds:1:"));
+    assert_non_null(strstr(err, "unknown input 'g'; did you mean 'f'?"));
+    wdrt_scene_free(s2);
+    wdrt_scene_free(s);
+    tl_voice_free(&v);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_impact_as_world_alone), cmocka_unit_test(test_sleep_and_wake),
         cmocka_unit_test(test_shared_resonator),      cmocka_unit_test(test_placed_body),
         cmocka_unit_test(test_contact_curves),        cmocka_unit_test(test_body_errors),
+        cmocka_unit_test(test_voice_body),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
