@@ -1275,194 +1275,31 @@ static int body_contact(wdrt_scene *S, const sx *f, scevent *e) {
     return 0;
 }
 
-/* The world of a render, and its timeline. */
+/* A render's bodies (wdrt_bodies, bodies.c) and their timeline: the
+ * impacts, and the contacts started, updated every block from their
+ * curves and stopped, in the order of their frames. */
 typedef struct swent {
     uint64_t frame;
-    int kind;           /* 0 impact, 1 contact start, 2 update, 3 stop */
-    int a, b, slot;     /* bodies; the contact's slot */
-    surf_impact_data hit;
-    surf_contact_data touch;
+    int kind;           /* 0 impact, 1 contact data, 2 stop */
+    int a, b, id;
+    double d[4];        /* impact: J vn vt; contact: v_a v_b slip force */
 } swent;
 
-typedef struct swhost {
-    surf_world *w;
-    int nres;
-    int *res_pool;      /* per resonator, its tap's pool */
-    int *body_res;      /* per body, its resonator */
+typedef struct swtl {
     swent *ev;
-    int nev, next;
-    surf_contact *ids;  /* per contact slot */
-    double *out;        /* [nres][block]: the resonators over the segment */
-    int block;
-    int *cursor;        /* per resonator: frames its tap has read of the segment */
-    double *gain;       /* per resonator */
-    wdv_class *vc;      /* per resonator: the class of a body's voice tap */
-} swhost;
+    int nev, next, cap;
+} swtl;
 
-typedef struct tap_state {
-    swhost *h;
-    int res;
-} tap_state;
-
-static void tap_init(void *state, double fs) {
-    (void)fs;
-    memset(state, 0, sizeof(tap_state));
-}
-static void tap_reset(void *state) { (void)state; }
-static int tap_set_param(void *state, int id, double v) {
-    (void)state, (void)id, (void)v;
-    return -1;
-}
-static double tap_get_param(const void *state, int id) {
-    (void)state, (void)id;
-    return 0;
-}
-static void tap_process(void *state, const double *const *in, double *const *out, int n) {
-    (void)in;
-    tap_state *t = state;
-    if (!t->h) {
-        memset(out[0], 0, sizeof(double) * (size_t)(n > 0 ? n : 0));
-        return;
-    }
-    int c = t->h->cursor[t->res];
-    const double *y = t->h->out + (size_t)t->res * (size_t)t->h->block;
-    for (int i = 0; i < n; i++)
-        out[0][i] = c + i < t->h->block ? y[c + i] : 0;
-    t->h->cursor[t->res] = c + n;
-}
-static double tap_energy(const void *state) {
-    const tap_state *t = state;
-    return t->h ? surf_resonator_energy(t->h->w, t->res) : 0;
-}
-static double tap_work(const void *state) {
-    (void)state;
-    return 0;
-}
-static int tap_set_ic(void *state, int n, const int *ids, const double *v) {
-    (void)state, (void)n, (void)ids, (void)v;
-    return -1;
-}
-typedef struct tap_data {
-    swhost *h;
-    int res;
-    const scbody *body; /* a body that rings a compiled voice, or NULL */
-} tap_data;
-
-/* A body's voice, rung through its force input by what the world excites
- * its (external) resonator with: the voice's state after a header. */
-typedef struct vtap_state {
-    swhost *h;
-    int res, input, output;
-    const wdv_class *cls;
-    double fs;
-} vtap_state;
-
-static size_t vtap_head(void) { return (sizeof(vtap_state) + 15) & ~(size_t)15; }
-
-static void vtap_init(void *state, double fs) {
-    vtap_state *t = state;
-    memset(t, 0, sizeof *t);
-    t->fs = fs;
-}
-static void vtap_reset(void *state) {
-    vtap_state *t = state;
-    if (t->cls)
-        t->cls->reset((char *)state + vtap_head());
-}
-static void vtap_process(void *state, const double *const *in, double *const *out, int n) {
-    (void)in;
-    vtap_state *t = state;
-    if (!t->cls) {
-        memset(out[0], 0, sizeof(double) * (size_t)(n > 0 ? n : 0));
-        return;
-    }
-    const wdv_class *c = t->cls;
-    char *inner = (char *)state + vtap_head();
-    double *scratch = (double *)(inner + ((c->state_size + 15) & ~(size_t)15)); /* zeros, then outputs */
-    const double *ip[64];
-    double *op[64];
-    for (int k = 0; k < c->n_inputs && k < 64; k++)
-        ip[k] = scratch;
-    if (t->h) {
-        int cur = t->h->cursor[t->res];
-        ip[t->input] = t->h->out + (size_t)t->res * (size_t)t->h->block + cur;
-        t->h->cursor[t->res] = cur + n;
-    }
-    for (int k = 0; k < c->n_outputs && k < 64; k++)
-        op[k] = k == t->output ? out[0] : scratch + 64 * (1 + (size_t)k);
-    c->process(inner, ip, op, n);
-    memset(scratch, 0, sizeof(double) * 64);
-}
-static double vtap_energy(const void *state) {
-    const vtap_state *t = state;
-    return t->cls ? t->cls->energy((const char *)state + vtap_head()) : 0;
-}
-static void tap_bind(void *state, const void *data) {
-    const tap_data *d = data;
-    if (d->body) { /* a voice tap */
-        vtap_state *v = state;
-        v->h = d->h, v->res = d->res, v->cls = d->body->cls;
-        v->input = d->body->input, v->output = d->body->output;
-        v->cls->init((char *)state + vtap_head(), v->fs);
-        return;
-    }
-    tap_state *t = state;
-    t->h = d->h;
-    t->res = d->res;
-}
-static const wdv_port tap_out[1] = {{"out", ""}};
-static const wdv_class tap_class = {"body", WDV_ABI_VERSION, 64, sizeof(tap_state), 0, 1, 0, 0, NULL, tap_out, NULL,
-                                    NULL, tap_init, tap_reset, tap_set_param, tap_get_param, tap_process,
-                                    tap_energy, tap_work, tap_set_ic};
-
-/* The excitations phase: the world runs the segment, its timeline acting
- * at its frames; each resonator's output waits for its tap. */
-static void sw_excite(void *user, uint64_t t0, int nb, unsigned char *wake) {
-    swhost *h = user;
-    int done = 0;
-    while (done < nb) {
-        while (h->next < h->nev && h->ev[h->next].frame <= t0 + (uint64_t)done) {
-            swent *x = &h->ev[h->next++];
-            switch (x->kind) {
-            case 0:
-                surf_impact(h->w, 0, x->a, x->b, &x->hit);
-                break;
-            case 1:
-                if (surf_contact_start(h->w, x->a, x->b, &x->touch, &h->ids[x->slot]) != WDRT_OK)
-                    h->ids[x->slot] = 0;
-                break;
-            case 2:
-                if (h->ids[x->slot])
-                    surf_contact_update(h->w, h->ids[x->slot], &x->touch);
-                break;
-            default:
-                if (h->ids[x->slot])
-                    surf_contact_stop(h->w, h->ids[x->slot]);
-                h->ids[x->slot] = 0;
-                break;
-            }
+static void sw_push(swtl *T, swent e) {
+    if (T->nev == T->cap) {
+        T->cap = T->cap ? 2 * T->cap : 64;
+        T->ev = realloc(T->ev, sizeof *T->ev * (size_t)T->cap);
+        if (!T->ev) {
+            fprintf(stderr, "wdrt: out of memory\n");
+            abort();
         }
-        int upto = nb;
-        if (h->next < h->nev && h->ev[h->next].frame < t0 + (uint64_t)nb)
-            upto = (int)(h->ev[h->next].frame - t0);
-        int m = surf_process(h->w, NULL, upto - done);
-        for (int r = 0; r < h->nres; r++) {
-            const double *y = surf_output(h->w, r, 0);
-            double *o = h->out + (size_t)r * (size_t)h->block + done;
-            for (int i = 0; i < m; i++)
-                o[i] = y ? h->gain[r] * y[i] : 0;
-            if (y && h->vc[r].process) /* a voice the world excites wakes */
-                wake[h->res_pool[r]] = 1;
-        }
-        done += m;
-        if (m <= 0)
-            break;
     }
-    for (int r = 0; r < h->nres; r++) {
-        h->cursor[r] = 0;
-        if (surf_resonator_awake(h->w, r))
-            wake[h->res_pool[r]] = 1;
-    }
+    T->ev[T->nev++] = e;
 }
 
 static int cmp_swent(const void *a, const void *b) {
@@ -1470,100 +1307,56 @@ static int cmp_swent(const void *a, const void *b) {
     return x->frame < y->frame ? -1 : x->frame > y->frame ? 1 : x->kind - y->kind;
 }
 
-static void sw_push(swhost *h, int *cap, swent e) {
-    if (h->nev == *cap) {
-        *cap = *cap ? 2 * *cap : 64;
-        h->ev = realloc(h->ev, sizeof *h->ev * (size_t)*cap);
-        if (!h->ev) {
-            fprintf(stderr, "wdrt: out of memory\n");
-            abort();
-        }
-    }
-    h->ev[h->nev++] = e;
-}
-
 static double scnum_at(const scnum *v, double t) { return v->curve ? curve_at(v->curve, t) : v->v; }
 
-/* Builds the world of the scene's bodies and its timeline; the taps'
- * pools go to pc (one per resonator), their data to td. */
-static int sw_build(const wdrt_scene *S, double fs, int block, int pool0, swhost *h, wdrt_pool_config *pc,
-                    tap_data *td) {
-    memset(h, 0, sizeof *h);
+/* The scene's bodies into *out (NULL when it has none) and its timeline
+ * into T. */
+static int sw_build(const wdrt_scene *S, double fs, wdrt_bodies **out, swtl *T) {
+    *out = NULL;
+    memset(T, 0, sizeof *T);
     if (S->nbodies == 0)
         return 0;
-    int nres = 0, maxm = 1, ncont = 0;
+    int maxm = 1, ncont = 0;
     for (int i = 0; i < S->nbodies; i++)
-        if (S->bodies[i].share < 0)
-            nres++, maxm = S->bodies[i].nmodes > maxm ? S->bodies[i].nmodes : maxm;
+        maxm = S->bodies[i].nmodes > maxm ? S->bodies[i].nmodes : maxm;
     for (int i = 0; i < S->nev; i++)
         ncont += S->ev[i].kind == SE_CONTACT;
-    surf_config cfg = surf_config_init(fs);
-    cfg.block = block;
-    cfg.max_bodies = S->nbodies;
-    cfg.max_resonators = nres;
-    cfg.max_surfaces = S->nbodies;
-    cfg.max_modes = maxm;
-    cfg.max_pickups = 1;
-    cfg.max_contacts = ncont < 64 ? (ncont ? ncont : 1) : 64;
-    cfg.max_impacts = 64;
-    if (surf_init(&cfg, NULL, &h->w) != WDRT_OK)
+    wdrt_bodies_config c = wdrt_bodies_config_init(fs);
+    c.max_bodies = S->nbodies;
+    c.max_modes = maxm;
+    c.contacts = ncont ? ncont : 1;
+    c.queue = 1 << 16;
+    wdrt_bodies *h;
+    if (wdrt_bodies_new(&c, &h) != WDRT_OK)
         return -1;
-    h->nres = nres;
-    h->block = block;
-    h->res_pool = xcalloc((size_t)nres + 1, sizeof *h->res_pool);
-    h->body_res = xcalloc((size_t)S->nbodies + 1, sizeof *h->body_res);
-    h->out = xcalloc((size_t)nres * (size_t)block + 1, sizeof *h->out);
-    h->cursor = xcalloc((size_t)nres + 1, sizeof *h->cursor);
-    h->gain = xcalloc((size_t)nres + 1, sizeof *h->gain);
-    h->ids = xcalloc((size_t)ncont + 1, sizeof *h->ids);
-    h->vc = xcalloc((size_t)nres + 1, sizeof *h->vc);
-    int r = 0;
+    *out = h;
     for (int i = 0; i < S->nbodies; i++) {
-        const scbody *b = &S->bodies[i];
-        if (b->share >= 0)
-            continue;
-        if (b->netlist) { /* rings its voice: the world hands it the force */
-            if (!b->cls || surf_add_external(h->w) != r)
-                return -1;
-            wdv_class *c = &h->vc[r];
-            *c = tap_class;
-            c->name = b->cls->name;
-            c->state_size = vtap_head() + ((b->cls->state_size + 15) & ~(size_t)15) +
-                            sizeof(double) * 64 * (1 + (size_t)b->cls->n_outputs);
-            c->init = vtap_init, c->reset = vtap_reset, c->process = vtap_process, c->energy = vtap_energy;
-            td[r].body = b;
-        }
-        surf_resonator_desc rd = surf_resonator_desc_init();
-        rd.modes = b->modes, rd.nmodes = b->nmodes, rd.npickups = 1, rd.quiet = b->quiet;
-        if (!b->netlist && surf_add_resonator(h->w, &rd) != r)
-            return -1;
-        h->body_res[i] = r;
-        h->gain[r] = b->netlist ? 1 : b->gain;
-        h->res_pool[r] = pool0 + r;
-        td[r].h = h, td[r].res = r;
-        pc[r] = wdrt_pool_config_init(b->netlist ? &h->vc[r] : &tap_class, 1);
-        if (b->netlist)
-            pc[r].gain = b->gain, pc[r].cost_ns = 0; /* measured */
-        pc[r].owned = 1;
-        pc[r].bind = tap_bind;
-        pc[r].data = &td[r];
-        pc[r].quiet = b->quiet;
-        pc[r].placed = b->placed;
-        memcpy(pc[r].pos, b->pos, sizeof b->pos);
-        pc[r].cost_ns = 1;
-        r++;
-    }
-    for (int i = 0; i < S->nbodies; i++) {
-        const scbody *b = &S->bodies[i];
-        if (b->share >= 0)
-            h->body_res[i] = h->body_res[b->share];
-        if (surf_add_surface(h->w, &b->surf) != i)
-            return -1;
-        surf_body_desc bd = {h->body_res[i], i, b->mass};
-        if (surf_add_body(h->w, &bd) != i)
+        const scbody *sb = &S->bodies[i];
+        wdrt_body b = wdrt_body_init();
+        wdrt_mode *m = xcalloc((size_t)sb->nmodes + 1, sizeof *m);
+        for (int k = 0; k < sb->nmodes; k++)
+            m[k].f = sb->modes[k].f, m[k].t60 = sb->modes[k].t60, m[k].gain = sb->modes[k].gain[0];
+        b.modes = m, b.nmodes = sb->nmodes;
+        b.voice = sb->netlist ? sb->cls : NULL;
+        b.input = sb->input, b.output = sb->output;
+        b.share = sb->share;
+        b.mass = sb->mass;
+        b.hardness = sb->surf.hardness, b.damping = sb->surf.damping;
+        b.relief = sb->surf.relief.kind == SURF_RELIEF_GRID   ? WDRT_RELIEF_GRID
+                   : sb->surf.relief.kind == SURF_RELIEF_NONE ? WDRT_RELIEF_NONE
+                                                              : WDRT_RELIEF_NOISE;
+        b.relief_scale = sb->surf.relief.scale, b.relief_width = sb->surf.relief.width;
+        b.cutoff_roll = sb->surf.cutoff_roll, b.cutoff_slip = sb->surf.cutoff_slip;
+        b.gain = sb->gain, b.quiet = sb->quiet;
+        b.placed = sb->placed;
+        memcpy(b.pos, sb->pos, sizeof b.pos);
+        int r = (sb->netlist && !sb->cls) ? -1 : wdrt_bodies_add(h, &b);
+        free(m);
+        if (r != i)
             return -1;
     }
-    int cap = 0, slot = 0;
+    int id = 0;
+    const uint64_t B = 64;
     for (int i = 0; i < S->nev; i++) {
         const scevent *x = &S->ev[i];
         swent e;
@@ -1572,48 +1365,44 @@ static int sw_build(const wdrt_scene *S, double fs, int block, int pool0, swhost
         e.frame = frame_of(x->time, fs);
         if (x->kind == SE_HIT) {
             e.kind = 0;
-            e.hit.impulse = x->impulse, e.hit.vn = x->vn, e.hit.vt = x->vt;
-            sw_push(h, &cap, e);
+            e.d[0] = x->impulse, e.d[1] = x->vn, e.d[2] = x->vt;
+            sw_push(T, e);
         } else if (x->kind == SE_CONTACT) {
-            /* started, then updated every block from its curves, stopped at its end */
-            e.slot = slot++;
+            e.id = id++;
             uint64_t end = frame_of(x->until, fs);
-            for (uint64_t f = e.frame; f < end; f = (f / (uint64_t)block + 1) * (uint64_t)block) {
+            for (uint64_t f = e.frame; f < end; f = (f / B + 1) * B) {
                 double t = (double)f / fs - x->time;
-                e.kind = f == e.frame ? 1 : 2;
+                double roll = fabs(scnum_at(&x->roll, t)), slip = fabs(scnum_at(&x->slip, t));
+                double force = scnum_at(&x->force, t);
+                e.kind = 1;
                 e.frame = f;
-                double roll = scnum_at(&x->roll, t), slip = scnum_at(&x->slip, t), force = scnum_at(&x->force, t);
-                e.touch = surf_contact_rolling(roll, slip, force < 0 ? 0 : force);
-                sw_push(h, &cap, e);
+                e.d[0] = roll, e.d[1] = roll + slip, e.d[2] = slip, e.d[3] = force < 0 ? 0 : force;
+                sw_push(T, e);
             }
-            e.kind = 3;
+            e.kind = 2;
             e.frame = end;
-            sw_push(h, &cap, e);
+            sw_push(T, e);
         }
     }
-    if (h->nev > 1)
-        qsort(h->ev, (size_t)h->nev, sizeof *h->ev, cmp_swent);
+    if (T->nev > 1)
+        qsort(T->ev, (size_t)T->nev, sizeof *T->ev, cmp_swent);
     return 0;
 }
 
-static void sw_free(swhost *h) {
-    if (h->w)
-        surf_uninit(h->w, NULL);
-    free(h->res_pool);
-    free(h->body_res);
-    free(h->out);
-    free(h->cursor);
-    free(h->gain);
-    free(h->ids);
-    free(h->vc);
-    free(h->ev);
-}
-
-static int sw_resonators(const wdrt_scene *S) {
-    int n = 0;
-    for (int i = 0; i < S->nbodies; i++)
-        n += S->bodies[i].share < 0;
-    return n;
+/* Posts the bodies' events before frame `until`; returns the frame the
+ * render may go to. */
+static uint64_t sw_post(wdrt_bodies *h, swtl *T, uint64_t now, uint64_t until) {
+    while (h && T->next < T->nev && T->ev[T->next].frame < until) {
+        const swent *x = &T->ev[T->next];
+        wdrt_result r = x->kind == 0   ? wdrt_bodies_impact(h, x->frame, x->a, x->b, x->d[0], x->d[1], x->d[2])
+                        : x->kind == 1 ? wdrt_bodies_contact(h, x->frame, x->id, x->a, x->b, x->d[0], x->d[1],
+                                                             x->d[2], x->d[3])
+                                       : wdrt_bodies_contact_stop(h, x->frame, x->id);
+        if (r == WDRT_QUEUE_FULL)
+            return x->frame > now ? x->frame : now + 1;
+        T->next++;
+    }
+    return until;
 }
 
 /* ---- the timeline ---- */
@@ -2630,11 +2419,10 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     if (!S || !frames || !nframes || !nch)
         return WDRT_INVALID_ARGS;
     render R;
-    int nres = sw_resonators(S);
-    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + (size_t)S->ncx + (size_t)nres + 1, sizeof *pc);
-    tap_data *td = xcalloc((size_t)nres + 1, sizeof *td);
-    swhost sw;
-    memset(&sw, 0, sizeof sw);
+    wdrt_pool_config *pc = xcalloc((size_t)S->nvoices + (size_t)S->ncx + 1, sizeof *pc);
+    wdrt_bodies *bodies = NULL;
+    swtl tl;
+    memset(&tl, 0, sizeof tl);
     cx_source *srcs = xcalloc((size_t)S->ncx + 1, sizeof *srcs);
     double **pv = xcalloc((size_t)S->nvoices + 1, sizeof *pv);
     wdrt_result res = WDRT_INVALID_ARGS;
@@ -2643,15 +2431,22 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     if (render_init(&R, S, o, pc, pv) != 0)
         goto done;
     complex_pools(S, pc + S->nvoices, srcs);
-    if (sw_build(S, R.fs, 64, S->nvoices + S->ncx, &sw, pc + S->nvoices + S->ncx, td) != 0) {
+    if (sw_build(S, R.fs, &bodies, &tl) != 0) {
         fprintf(stderr, "wdrt: error: the scene's bodies could not be built\n");
         goto done;
     }
-    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices + S->ncx + nres, pc);
+    int nres = wdrt_bodies_npools(bodies);
     if (nres) {
-        ec.excite = sw_excite;
-        ec.excite_user = &sw;
+        pc = realloc(pc, sizeof *pc * ((size_t)S->nvoices + (size_t)S->ncx + (size_t)nres + 1));
+        if (!pc) {
+            res = WDRT_OUT_OF_MEMORY;
+            goto done;
+        }
+        wdrt_bodies_pools(bodies, pc, S->nvoices + S->ncx);
     }
+    wdrt_engine_config ec = wdrt_engine_config_init(R.fs, S->channels, S->nvoices + S->ncx + nres, pc);
+    if (nres)
+        wdrt_bodies_attach(bodies, &ec);
     ec.queue = 1 << 16;
     ec.pending = 1 << 16;
     ec.sleep = S->sleep && !(o && o->nosleep);
@@ -2690,7 +2485,7 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     wdrt_engine_stats st;
     while (t < cap) {
         uint64_t want = t + chunk < cap ? t + chunk : cap;
-        uint64_t end = post_due(&R, t, want);
+        uint64_t end = post_due(&R, t, sw_post(bodies, &tl, t, want));
         if (end > alloc) {
             alloc = end * 2 < cap ? end * 2 : cap;
             double *p = realloc(out, sizeof(double) * (size_t)alloc * (size_t)S->channels);
@@ -2733,7 +2528,7 @@ done:
     for (int i = 0; R.tc && i < S->nvoices; i++)
         tt_class_uninit(&R.tc[i]);
     free(R.tc);
-    sw_free(&sw);
-    free(td);
+    wdrt_bodies_free(bodies);
+    free(tl.ev);
     return res;
 }

@@ -326,6 +326,104 @@ void wdrt_engine_get_stats(const wdrt_engine *e, wdrt_engine_stats *s);
 /* The cost in ns per sample of one voice of `pool` (measured or given). */
 double wdrt_engine_pool_cost(const wdrt_engine *e, int pool);
 
+/* ---- bodies ------------------------------------------------------ */
+
+/* Bodies that sound when they touch, after Menzies' acoustic scene
+ * manager: modal resonators (or compiled voices with a force input),
+ * surfaces with hardness, damping and a relief, and the contacts and
+ * impacts between them, as a physics engine reports them.  A wdrt_bodies
+ * is made with its bodies before the engine, hands the engine one pool
+ * per resonator (a source like a voice: placed where its body is, asleep
+ * when quiet) and runs in the engine's excitations phase.  A physics
+ * thread posts impacts and contacts at the frames they happen through a
+ * lock-free queue of its own.  See README, "Bodies". */
+typedef struct wdrt_bodies wdrt_bodies;
+
+typedef struct wdrt_mode {
+    double f;     /* Hz */
+    double t60;   /* s: its amplitude falls 60 dB in that time */
+    double gain;  /* output units per N s of impulse */
+} wdrt_mode;
+
+typedef enum wdrt_relief { WDRT_RELIEF_NONE, WDRT_RELIEF_NOISE, WDRT_RELIEF_GRID } wdrt_relief;
+
+typedef struct wdrt_body {
+    /* what rings: modes of its own, a compiled voice driven through one of
+     * its inputs by the force (N), or the resonator of an earlier body */
+    const wdrt_mode *modes;
+    int nmodes;
+    const wdv_class *voice;
+    int input, output;    /* the voice's force input and heard output */
+    int share;            /* -1, or the body whose resonator it rings */
+    double mass;          /* kg */
+    double hardness;      /* N/m: the surface's stiffness in contact */
+    double damping;       /* 1/s: added to the resonators it touches */
+    wdrt_relief relief;
+    double relief_scale;  /* m: the relief's grain or grid spacing */
+    double relief_width;  /* m: a grid's bumps */
+    double cutoff_roll;   /* Hz: a contact's low-pass when it rolls */
+    double cutoff_slip;   /* Hz: when it slips at 1 m/s */
+    double gain;          /* of what its resonator is heard at */
+    double quiet;         /* level below which its resonator sleeps */
+    int placed;
+    double pos[3];        /* m */
+} wdrt_body;
+
+/* Defaults: 0.1 kg, hardness 1e7 N/m, no damping, a noise relief of
+ * 0.1 mm grain, cutoffs 200 Hz rolling and 8 kHz slipping, gain 1, quiet
+ * 1e-5, share -1, not placed. */
+wdrt_body wdrt_body_init(void);
+
+typedef struct wdrt_bodies_config {
+    double rate;     /* Hz: the engine's */
+    int max_bodies;  /* default 64 */
+    int max_modes;   /* per resonator; default 64 */
+    int contacts;    /* live at once, and the ids a caller may use; default 32 */
+    int impacts;     /* sounding at once; default 64 */
+    int queue;       /* events the physics queue holds; default 4096 */
+} wdrt_bodies_config;
+
+wdrt_bodies_config wdrt_bodies_config_init(double rate);
+
+/* Makes an empty world (allocates: not real-time safe); add bodies, then
+ * attach it to an engine config before the engine is made. */
+wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out);
+void wdrt_bodies_free(wdrt_bodies *b);
+/* Adds a body; returns its index (0, 1, ...) or a negative wdrt_result. */
+int wdrt_bodies_add(wdrt_bodies *b, const wdrt_body *body);
+/* The pools its resonators need, in order; write them into an engine
+ * config's pools from index first (wdrt_bodies_pools), and let it run the
+ * excitations phase (wdrt_bodies_attach).  The wdrt_bodies must outlive
+ * the engine. */
+int wdrt_bodies_npools(const wdrt_bodies *b);
+wdrt_result wdrt_bodies_pools(wdrt_bodies *b, wdrt_pool_config *pools, int first);
+void wdrt_bodies_attach(wdrt_bodies *b, wdrt_engine_config *c);
+
+/* From one thread (a physics engine's), events at absolute frames, in the
+ * order of their frames (an event whose frame has passed acts at once).
+ * An impact of bodies a and b: impulse J (N s), normal and tangential
+ * speeds (m/s).  A contact `id` (0 .. contacts-1, the caller's name for
+ * it) starts or takes new data: the speeds of the contact point over a's
+ * and b's surfaces, the slip between them (m/s) and the normal force
+ * (N); it lives until stopped.  WDRT_QUEUE_FULL: post again later.
+ * Real-time safe (lock-free, no allocation). */
+wdrt_result wdrt_bodies_impact(wdrt_bodies *b, uint64_t frame, int a, int c, double impulse, double vn,
+                               double vt);
+wdrt_result wdrt_bodies_contact(wdrt_bodies *b, uint64_t frame, int id, int a, int c, double v_a,
+                                double v_b, double slip, double force);
+wdrt_result wdrt_bodies_contact_stop(wdrt_bodies *b, uint64_t frame, int id);
+
+/* Counts since it was made: contacts and impacts in use and their
+ * high-water marks, events refused (a full pool), resonators awake and
+ * modes run in the last block.  Call from the audio thread or when it is
+ * not running. */
+typedef struct wdrt_bodies_stats {
+    int contacts, contacts_hwm, impacts, impacts_hwm;
+    uint64_t refused;
+    int awake, modes;
+} wdrt_bodies_stats;
+void wdrt_bodies_get_stats(const wdrt_bodies *b, wdrt_bodies_stats *s);
+
 /* ---- scenes (.wds) ------------------------------------------------- */
 
 /* A scene read from a .wds file: objects and a timeline (see README).

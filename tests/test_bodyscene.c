@@ -17,6 +17,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "countalloc.h"
 #include "surf.h"
 #include "testlib.h"
 #include "wdrt.h"
@@ -308,12 +309,70 @@ static void test_voice_body(void **st) {
     tl_voice_free(&v);
 }
 
+static void test_c_api(void **st) {
+    (void)st;
+    /* the bodies of the first test through the public API, driven as a
+     * physics thread would: the same sound, sample for sample, as the
+     * world alone; nothing allocated while the engine processes */
+    wdrt_bodies_config bc = wdrt_bodies_config_init(FS);
+    bc.queue = 4;
+    wdrt_bodies *h;
+    assert_int_equal(wdrt_bodies_new(&bc, &h), WDRT_OK);
+    wdrt_mode bm[2] = {{440, 0.5, 1}, {1250, 0.3, 0.5}}, fm[1] = {{90, 0.1, 1}};
+    wdrt_body b = wdrt_body_init();
+    b.modes = bm, b.nmodes = 2, b.mass = 0.05, b.hardness = 1e6, b.quiet = 1e-5;
+    assert_int_equal(wdrt_bodies_add(h, &b), 0);
+    b.modes = fm, b.nmodes = 1, b.mass = 5, b.hardness = 1e8, b.gain = 0;
+    assert_int_equal(wdrt_bodies_add(h, &b), 1);
+    b.share = 0, b.nmodes = 0; /* a third body on the first's resonator: no pool of its own */
+    assert_int_equal(wdrt_bodies_add(h, &b), 2);
+    b.share = 7;
+    assert_int_equal(wdrt_bodies_add(h, &b), WDRT_INVALID_ARGS);
+    assert_int_equal(wdrt_bodies_npools(h), 2);
+    wdrt_pool_config pc[2];
+    assert_int_equal(wdrt_bodies_pools(h, pc, 0), WDRT_OK);
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 2, pc);
+    ec.sleep = 0;
+    wdrt_bodies_attach(h, &ec);
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    assert_int_equal(wdrt_bodies_impact(h, 6400, 0, 1, 0.01, 0, 0), WDRT_OK);
+    assert_int_equal(wdrt_bodies_impact(h, 6400, 0, 0, 0.01, 0, 0), WDRT_INVALID_ARGS);
+    assert_int_equal(wdrt_bodies_contact(h, 0, 99, 0, 1, 0, 0, 0, 1), WDRT_INVALID_ARGS);
+    for (int i = 0; i < 3; i++) /* the queue of 4 fills */
+        assert_int_equal(wdrt_bodies_contact_stop(h, 30000, 0), WDRT_OK);
+    assert_int_equal(wdrt_bodies_contact_stop(h, 30000, 0), WDRT_QUEUE_FULL);
+    long n = (long)FS;
+    double *y = calloc((size_t)n, sizeof *y), *z = calloc((size_t)n, sizeof *z);
+    ca_allocs = 0;
+    for (long i = 0; i < n; i += 333) {
+        ca_in_rt = 1;
+        wdrt_engine_process(e, y + i, (uint32_t)(n - i < 333 ? n - i : 333));
+        ca_in_rt = 0;
+    }
+    assert_int_equal(ca_allocs, 0);
+    world_alone(z, n, 6400);
+    double err = 0, pk = 0;
+    for (long i = 0; i < n; i++)
+        err = fmax(err, fabs(y[i] - z[i])), pk = fmax(pk, fabs(z[i]));
+    wdrt_bodies_stats s;
+    wdrt_bodies_get_stats(h, &s);
+    printf("C API: %.3g of peak %.3g; impacts high-water %d, refused %llu\n", err, pk, s.impacts_hwm,
+           (unsigned long long)s.refused);
+    assert_true(pk > 1e-4 && err <= 1e-12 * pk);
+    assert_int_equal(s.impacts_hwm, 1);
+    wdrt_engine_uninit(e, NULL);
+    wdrt_bodies_free(h);
+    free(y);
+    free(z);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_impact_as_world_alone), cmocka_unit_test(test_sleep_and_wake),
         cmocka_unit_test(test_shared_resonator),      cmocka_unit_test(test_placed_body),
         cmocka_unit_test(test_contact_curves),        cmocka_unit_test(test_body_errors),
-        cmocka_unit_test(test_voice_body),
+        cmocka_unit_test(test_voice_body),            cmocka_unit_test(test_c_api),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
