@@ -46,11 +46,12 @@ struct wdrt_bodies {
     tapref *refs;        /* per resonator: what its tap is bound to */
     double *out;         /* [nres][BLOCK]: what each resonator made of the segment */
     int *cursor;         /* per resonator: frames its tap has read */
+    int *active;         /* per resonator: the modes it was admitted with */
     int pool0;           /* the engine pool of resonator 0 */
     surf_contact *ids;   /* per contact id */
     bev *q;              /* the physics queue */
     uint32_t qmask, head, tail;
-    uint64_t refused;
+    uint64_t refused, lowered;
 };
 
 /* ---- the taps ---- */
@@ -199,6 +200,7 @@ wdrt_bodies_config wdrt_bodies_config_init(double rate) {
     c.contacts = 32;
     c.impacts = 64;
     c.queue = 4096;
+    c.active_modes = 0;
     return c;
 }
 
@@ -215,6 +217,7 @@ void wdrt_bodies_free(wdrt_bodies *h) {
     free(h->refs);
     free(h->out);
     free(h->cursor);
+    free(h->active);
     free(h->ids);
     free(h->q);
     free(h);
@@ -223,7 +226,8 @@ void wdrt_bodies_free(wdrt_bodies *h) {
 wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     if (!c || !out || !(c->rate >= 8000 && c->rate <= 768000) || c->max_bodies < 1 || c->max_bodies > 65536 ||
         c->max_modes < 0 || c->max_modes > 65536 || c->contacts < 1 || c->contacts > SURF_MAX_POOL ||
-        c->impacts < 1 || c->impacts > SURF_MAX_POOL || c->queue < 1 || c->queue > (1 << 24))
+        c->impacts < 1 || c->impacts > SURF_MAX_POOL || c->queue < 1 || c->queue > (1 << 24) ||
+        c->active_modes < 0)
         return WDRT_INVALID_ARGS;
     *out = NULL;
     wdrt_bodies *h = calloc(1, sizeof *h);
@@ -243,6 +247,7 @@ wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     h->refs = calloc(nb, sizeof *h->refs);
     h->out = calloc(nb * BLOCK, sizeof *h->out);
     h->cursor = calloc(nb, sizeof *h->cursor);
+    h->active = calloc(nb, sizeof *h->active);
     h->ids = calloc((size_t)c->contacts, sizeof *h->ids);
     h->q = calloc(qn, sizeof *h->q);
     surf_config sc = surf_config_init(c->rate);
@@ -254,7 +259,7 @@ wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     sc.max_pickups = 1;
     sc.max_contacts = c->contacts;
     sc.max_impacts = c->impacts;
-    if (!h->body_res || !h->res_body || !h->body || !h->gain || !h->vc || !h->refs || !h->out || !h->cursor ||
+    if (!h->body_res || !h->res_body || !h->body || !h->gain || !h->vc || !h->refs || !h->out || !h->cursor || !h->active ||
         !h->ids || !h->q || surf_init(&sc, NULL, &h->w) != WDRT_OK) {
         wdrt_bodies_free(h);
         return WDRT_OUT_OF_MEMORY;
@@ -351,8 +356,30 @@ wdrt_result wdrt_bodies_pools(wdrt_bodies *h, wdrt_pool_config *pools, int first
 
 /* ---- the excitations phase ---- */
 
+/* Admission under the mode limit: a resonator that is asleep when it is
+ * excited gets the modes left (its loudest first); 0 if none are. */
+static int admit(wdrt_bodies *h, int body) {
+    int r = h->body_res[body];
+    if (!h->cfg.active_modes || h->vc[r].process || surf_resonator_awake(h->w, r))
+        return 1;
+    int used = 0;
+    for (int i = 0; i < h->nres; i++)
+        if (i != r && !h->vc[i].process && surf_resonator_awake(h->w, i))
+            used += h->active[i];
+    int want = surf_resonator_modes(h->w, r), left = h->cfg.active_modes - used;
+    int n = want < left ? want : left > 0 ? left : 0;
+    surf_resonator_set_active_modes(h->w, r, n);
+    h->active[r] = n;
+    h->lowered += n < want;
+    return n > 0;
+}
+
 static void apply(wdrt_bodies *h, const bev *x) {
     surf_world *w = h->w;
+    if (x->kind == BE_IMPACT || (x->kind == BE_CONTACT && !h->ids[x->id])) {
+        int ra = admit(h, x->a), rb = admit(h, x->b);
+        h->refused += !ra && !rb; /* neither may ring: no room under the limit */
+    }
     if (x->kind == BE_IMPACT) {
         surf_impact_data d = {x->d[0], x->d[1], x->d[2]};
         if (surf_impact(w, 0, x->a, x->b, &d) != WDRT_OK)
@@ -458,5 +485,6 @@ void wdrt_bodies_get_stats(const wdrt_bodies *h, wdrt_bodies_stats *s) {
     s->contacts = st.contacts_in_use, s->contacts_hwm = st.contacts_hwm;
     s->impacts = st.impacts_in_use, s->impacts_hwm = st.impacts_hwm;
     s->refused = h->refused;
+    s->lowered = h->lowered;
     s->awake = st.resonators_awake, s->modes = st.modes;
 }

@@ -381,6 +381,11 @@ typedef struct wdrt_bodies_config {
     int contacts;    /* live at once, and the ids a caller may use; default 32 */
     int impacts;     /* sounding at once; default 64 */
     int queue;       /* events the physics queue holds; default 4096 */
+    int active_modes;/* modes that may ring at once, all resonators together;
+                        0: no limit.  A resonator struck while asleep gets
+                        what is left (its loudest modes first; none: the
+                        strike is refused); one that sounds keeps its
+                        modes until it sleeps, so nothing is cut off */
 } wdrt_bodies_config;
 
 wdrt_bodies_config wdrt_bodies_config_init(double rate);
@@ -419,7 +424,8 @@ wdrt_result wdrt_bodies_contact_stop(wdrt_bodies *b, uint64_t frame, int id);
  * not running. */
 typedef struct wdrt_bodies_stats {
     int contacts, contacts_hwm, impacts, impacts_hwm;
-    uint64_t refused;
+    uint64_t refused;    /* events a full pool or the mode limit refused */
+    uint64_t lowered;    /* resonators struck with fewer modes than they have */
     int awake, modes;
 } wdrt_bodies_stats;
 void wdrt_bodies_get_stats(const wdrt_bodies *b, wdrt_bodies_stats *s);

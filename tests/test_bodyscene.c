@@ -367,12 +367,81 @@ static void test_c_api(void **st) {
     free(z);
 }
 
+static void test_mode_limit(void **st) {
+    (void)st;
+    /* two bells of ten modes each under a limit of twelve: the first is
+     * struck and rings all ten; the second, struck while it rings, gets
+     * the two left (its loudest); once the first has slept the second,
+     * struck again, rings all ten.  Nothing sounding is cut off. */
+    wdrt_mode m[10];
+    for (int k = 0; k < 10; k++)
+        m[k].f = 300 * (k + 1) * (1 + 0.01 * k), m[k].t60 = 0.4, m[k].gain = 1.0 / (k + 1);
+    double *y[2];
+    long n = (long)(2.5 * FS);
+    for (int lim = 0; lim < 2; lim++) {
+        wdrt_bodies_config bc = wdrt_bodies_config_init(FS);
+        bc.active_modes = lim ? 12 : 0;
+        wdrt_bodies *h;
+        assert_int_equal(wdrt_bodies_new(&bc, &h), WDRT_OK);
+        wdrt_body b = wdrt_body_init();
+        b.modes = m, b.nmodes = 10, b.hardness = 1e6, b.quiet = 1e-4;
+        assert_int_equal(wdrt_bodies_add(h, &b), 0);
+        assert_int_equal(wdrt_bodies_add(h, &b), 1);
+        b.gain = 0, b.nmodes = 1;
+        assert_int_equal(wdrt_bodies_add(h, &b), 2);
+        wdrt_pool_config pc[3];
+        wdrt_bodies_pools(h, pc, 0);
+        wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 3, pc);
+        wdrt_bodies_attach(h, &ec);
+        wdrt_engine *e;
+        assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+        wdrt_bodies_impact(h, 4800, 0, 2, 0.01, 0, 0);
+        wdrt_bodies_impact(h, 9600, 1, 2, 0.01, 0, 0);
+        wdrt_bodies_impact(h, (uint64_t)(2.0 * FS), 1, 2, 0.01, 0, 0);
+        y[lim] = calloc((size_t)n, sizeof(double));
+        for (long i = 0; i < n; i += 64)
+            wdrt_engine_process(e, y[lim] + i, (uint32_t)(n - i < 64 ? n - i : 64));
+        wdrt_bodies_stats s;
+        wdrt_bodies_get_stats(h, &s);
+        if (lim) {
+            printf("mode limit: %llu lowered, %llu refused\n", (unsigned long long)s.lowered,
+                   (unsigned long long)s.refused);
+            assert_int_equal(s.lowered, 1);
+            assert_int_equal(s.refused, 0);
+        }
+        wdrt_engine_uninit(e, NULL);
+        wdrt_bodies_free(h);
+    }
+    /* until the second strike the two are the same; after it, the limited
+     * one lacks the second bell's eight quietest modes; after the third,
+     * the same again */
+    double d1 = 0, d2 = 0, d3 = 0, pk = 0;
+    for (long i = 0; i < n; i++) {
+        double d = fabs(y[0][i] - y[1][i]);
+        pk = fmax(pk, fabs(y[0][i]));
+        if (i < 9600)
+            d1 = fmax(d1, d);
+        else if (i < (long)(1.9 * FS))
+            d2 = fmax(d2, d);
+        else if (i > (long)(2.0 * FS))
+            d3 = fmax(d3, d);
+    }
+    printf("mode limit: before %.3g, while lowered %.3g (%.1f dB re peak), after %.3g\n", d1, d2,
+           20 * log10(d2 / pk), d3);
+    assert_true(d1 == 0);
+    assert_true(d2 > 1e-4 * pk && d2 < 0.5 * pk);
+    assert_true(d3 <= 1e-12 * pk);
+    free(y[0]);
+    free(y[1]);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_impact_as_world_alone), cmocka_unit_test(test_sleep_and_wake),
         cmocka_unit_test(test_shared_resonator),      cmocka_unit_test(test_placed_body),
         cmocka_unit_test(test_contact_curves),        cmocka_unit_test(test_body_errors),
         cmocka_unit_test(test_voice_body),            cmocka_unit_test(test_c_api),
+        cmocka_unit_test(test_mode_limit),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
