@@ -374,6 +374,15 @@ static const char *const g_seeds[] = {
     "(voice m \"x.wdn\" (pool 2) (pos 0 5 1))\n"
     "(voice s \"x.wdn\" (pos (path (0 -5 3 1) (0.02 5 3 1))))\n"
     "(at 0.001 (play m (strike (v m 1) (x m -0.2m))))\n",
+    "(room r (box -5 -5 0 5 5 3) (t60 0.5 0.3) (ambient (* 0.01 (noise))))\n"
+    "(tree s (* g (osc (+ 200 (* 50 (sine (* 3 t)))) saw)) (param g (distance b listener)) (pos 1 2 1))\n"
+    "(tree b (* 0 t) (pos (path (0 0 0 0) (0.02 1 1 0))))\n"
+    "(tree n (* j (env (0 1) (0.01 0))) (pool 2) (param j (impulse)))\n"
+    "(at 0.001 (impact b n (mass 0.1)))\n(at 0.005 (play n (set j 0.2)))\n",
+    "(body a (modes (440 0.5 1) (900 0.3 0.5)) (mass 0.05) (relief grid 0.001 0.0005) (pos 0 2 1))\n"
+    "(body b (modes (90 0.1 1)) (mass 5) (hardness 1e8))\n(body c (share a))\n"
+    "(at 0.001 (impact a b (impulse 0.01) (speed 1 0.2)))\n"
+    "(at 0.002 (contact c b (force (curve (0 0) (0.01 1))) (slip 0.3) (roll 0.1) (until 0.015)))\n",
 };
 #define NSEEDS ((int)(sizeof g_seeds / sizeof *g_seeds))
 
