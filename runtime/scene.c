@@ -112,6 +112,7 @@ struct wdrt_scene {
     int ncx;
     struct scbody *bodies; /* bodies (section "bodies"): taps after the complexes */
     int nbodies;
+    int active_modes;      /* (active-modes N): modes the bodies may ring at once; 0: any */
     /* space (section "space") */
     wdrt_space_config sp;
     double lis[3];
@@ -1171,6 +1172,17 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
     return 0;
 }
 
+/* active-modes = '(' 'active-modes' N ')' */
+static int f_active_modes(wdrt_scene *S, const sx *f) {
+    double x;
+    if (arity(S, f, 2, 2, "(active-modes N)") || number(S, f->head->next, &x))
+        return -1;
+    if (x != floor(x) || x < 1 || x > 1e6)
+        return ERR(f->head->next, "a whole number of modes, at least 1");
+    S->active_modes = (int)x;
+    return 0;
+}
+
 /* body = '(' 'body' NAME property* ')' */
 static int f_body(wdrt_scene *S, const sx *f) {
     if (arity(S, f, 2, -1, "(body NAME (modes ...) ...)"))
@@ -1326,6 +1338,7 @@ static int sw_build(const wdrt_scene *S, double fs, wdrt_bodies **out, swtl *T) 
     c.max_modes = maxm;
     c.contacts = ncont ? ncont : 1;
     c.queue = 1 << 16;
+    c.active_modes = S->active_modes;
     wdrt_bodies *h;
     if (wdrt_bodies_new(&c, &h) != WDRT_OK)
         return -1;
@@ -1589,7 +1602,7 @@ static const form forms[] = {
     {"sleep", f_sleep}, {"voice", f_voice},   {"at", f_at},       {"c", f_c},
     {"distance", f_distance}, {"air", f_air}, {"listener", f_listener}, {"wall", f_wall}, {"sources", f_sources},
     {"room", f_room},     {"complex", f_complex}, {"tree", f_tree}, {"include", f_include},
-    {"body", f_body},
+    {"body", f_body}, {"active-modes", f_active_modes},
 };
 #define NFORMS ((int)(sizeof forms / sizeof *forms))
 
