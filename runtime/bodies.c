@@ -21,7 +21,7 @@
 
 #define BLOCK 64 /* the engine's block at most: what a tap reads per block */
 
-enum { BE_IMPACT, BE_CONTACT, BE_STOP };
+enum { BE_IMPACT, BE_CONTACT, BE_STOP, BE_ENABLE };
 
 typedef struct bev {
     uint64_t frame;
@@ -189,6 +189,8 @@ wdrt_body wdrt_body_init(void) {
     b.cutoff_slip = 8000;
     b.gain = 1;
     b.quiet = 1e-5;
+    b.contact_gains.master = b.impact_gains.master = 1;
+    b.contact_gains.limit = b.impact_gains.limit = INFINITY;
     return b;
 }
 
@@ -200,6 +202,7 @@ wdrt_bodies_config wdrt_bodies_config_init(double rate) {
     c.contacts = 32;
     c.impacts = 64;
     c.queue = 4096;
+    c.relief_frames = 0;
     c.active_modes = 0;
     return c;
 }
@@ -227,7 +230,7 @@ wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     if (!c || !out || !(c->rate >= 8000 && c->rate <= 768000) || c->max_bodies < 1 || c->max_bodies > 65536 ||
         c->max_modes < 0 || c->max_modes > 65536 || c->contacts < 1 || c->contacts > SURF_MAX_POOL ||
         c->impacts < 1 || c->impacts > SURF_MAX_POOL || c->queue < 1 || c->queue > (1 << 24) ||
-        c->active_modes < 0)
+        c->active_modes < 0 || c->relief_frames < 0)
         return WDRT_INVALID_ARGS;
     *out = NULL;
     wdrt_bodies *h = calloc(1, sizeof *h);
@@ -259,6 +262,7 @@ wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     sc.max_pickups = 1;
     sc.max_contacts = c->contacts;
     sc.max_impacts = c->impacts;
+    sc.relief_frames = c->relief_frames;
     if (!h->body_res || !h->res_body || !h->body || !h->gain || !h->vc || !h->refs || !h->out || !h->cursor || !h->active ||
         !h->ids || !h->q || surf_init(&sc, NULL, &h->w) != WDRT_OK) {
         wdrt_bodies_free(h);
@@ -311,11 +315,18 @@ int wdrt_bodies_add(wdrt_bodies *h, const wdrt_body *b) {
     surf_surface_desc sd = surf_surface_desc_init();
     sd.hardness = b->hardness;
     sd.damping = b->damping;
-    sd.relief.kind = b->relief == WDRT_RELIEF_GRID ? SURF_RELIEF_GRID
-                     : b->relief == WDRT_RELIEF_NONE ? SURF_RELIEF_NONE
-                                                     : SURF_RELIEF_NOISE;
+    sd.relief.kind = b->relief == WDRT_RELIEF_GRID      ? SURF_RELIEF_GRID
+                     : b->relief == WDRT_RELIEF_NONE    ? SURF_RELIEF_NONE
+                     : b->relief == WDRT_RELIEF_SEGMENT ? SURF_RELIEF_SEGMENT
+                                                        : SURF_RELIEF_NOISE;
     sd.relief.scale = b->relief_scale;
     sd.relief.width = b->relief_width;
+    sd.relief.samples = b->relief_samples;
+    sd.relief.nsamples = b->relief_nsamples;
+    sd.contact = (surf_gains){b->contact_gains.master, b->contact_gains.other, b->contact_gains.direct,
+                              b->contact_gains.limit};
+    sd.impact = (surf_gains){b->impact_gains.master, b->impact_gains.other, b->impact_gains.direct,
+                             b->impact_gains.limit};
     sd.cutoff_roll = b->cutoff_roll;
     sd.cutoff_slip = b->cutoff_slip;
     int s = surf_add_surface(h->w, &sd);
@@ -328,6 +339,7 @@ int wdrt_bodies_add(wdrt_bodies *h, const wdrt_body *b) {
     h->body_res[i] = r;
     h->body[i] = *b;
     h->body[i].modes = NULL; /* copied into the world */
+    h->body[i].relief_samples = NULL;
     h->nbodies = i + 1;
     return i;
 }
@@ -386,6 +398,10 @@ static void apply(wdrt_bodies *h, const bev *x) {
             h->refused++;
         return;
     }
+    if (x->kind == BE_ENABLE) {
+        surf_body_enable(w, x->a, x->id);
+        return;
+    }
     surf_contact *id = &h->ids[x->id];
     if (x->kind == BE_STOP) {
         if (*id)
@@ -416,11 +432,14 @@ static void excite(void *user, uint64_t t0, int nb, unsigned char *wake) {
             upto = (int)(h->q[h->head & h->qmask].frame - t0);
         int m = surf_process(h->w, NULL, upto - done);
         for (int r = 0; r < h->nres; r++) {
-            const double *y = surf_output(h->w, r, 0);
+            const double *y = surf_output(h->w, r, 0), *dy = h->vc[r].process ? NULL : surf_output(h->w, r, SURF_DIRECT);
             double *o = h->out + (size_t)r * BLOCK + done;
             for (int i = 0; i < m; i++)
                 o[i] = y ? h->gain[r] * y[i] : 0;
-            if (y && h->vc[r].process) /* a voice the world excites wakes */
+            if (dy) /* Figure 4's direct path: the excitation heard unresonated */
+                for (int i = 0; i < m; i++)
+                    o[i] += h->gain[r] * dy[i];
+            if ((y && h->vc[r].process) || dy) /* a voice the world excites, or a direct sound, wakes */
                 wake[h->pool0 + r] = 1;
         }
         if (m <= 0)
@@ -476,6 +495,13 @@ wdrt_result wdrt_bodies_contact_stop(wdrt_bodies *h, uint64_t frame, int id) {
     if (!h || id < 0 || id >= h->cfg.contacts)
         return WDRT_INVALID_ARGS;
     bev x = {frame, BE_STOP, 0, 0, id, {0, 0, 0, 0}};
+    return post(h, &x);
+}
+
+wdrt_result wdrt_bodies_enable(wdrt_bodies *h, uint64_t frame, int body, int on) {
+    if (!h || body < 0 || body >= h->nbodies)
+        return WDRT_INVALID_ARGS;
+    bev x = {frame, BE_ENABLE, body, 0, on != 0, {0, 0, 0, 0}};
     return post(h, &x);
 }
 

@@ -1010,6 +1010,8 @@ typedef struct scbody {
     int placed;
     double pos[3];
     const sx *path;
+    double *segment;    /* (relief "f.wav" SCALE): its samples, mono */
+    long nsegment;
 } scbody;
 
 static int body_index(const wdrt_scene *S, const char *name) {
@@ -1071,7 +1073,7 @@ static int body_modes(wdrt_scene *S, scbody *b, const sx *p) {
 /* A property of a body */
 static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
     static const char *const props[] = {"modes", "share", "mass", "hardness", "damping", "relief", "roll",
-                                        "slip", "gain", "quiet", "pos", "skid", "voice", "input", "output"};
+                                        "slip", "gain", "quiet", "pos", "skid", "voice", "input", "output", "gains"};
     if (p->kind != SX_LIST || !p->head || p->head->kind != SX_SYM)
         return ERR(p, "expected a property such as (modes ...) or (mass M)");
     const char *k = p->head->text;
@@ -1108,10 +1110,33 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
         return position(S, p, b->pos, &b->path);
     }
     if (!strcmp(k, "relief")) {
-        /* (relief noise|grid|none SCALE [WIDTH]) */
+        /* (relief noise|grid|none SCALE [WIDTH]) or (relief "f.wav" SCALE) */
         static const char *const kinds[] = {"none", "noise", "grid"};
-        if (arity(S, p, 2, 4, "(relief noise|grid|none [SCALE] [WIDTH])"))
+        if (arity(S, p, 2, 4, "(relief noise|grid|none [SCALE] [WIDTH]) or (relief \"file.wav\" SCALE)"))
             return -1;
+        if (a->kind == SX_STR) { /* an audio segment, one sample every SCALE m */
+            if (p->len != 3 || number(S, a->next, &b->surf.relief.scale) || !(b->surf.relief.scale > 0 && b->surf.relief.scale < 1))
+                return p->len != 3 || a->next->kind == SX_NUM ? ERR(p, "expected (relief \"file.wav\" SCALE), SCALE in m per sample") : -1;
+            char *path = resolve_path(S, a->text);
+            int nch;
+            double fs, *fr;
+            long nf;
+            wdrt_result r = wdrt_wav_read(path, &nch, &fs, &fr, &nf);
+            free(path);
+            if (r != WDRT_OK || nf < 2)
+                return ERR(a, "cannot read the sound file '%s' as a relief (two samples at least)", a->text);
+            free(b->segment);
+            b->segment = xcalloc((size_t)nf, sizeof *b->segment);
+            for (long i = 0; i < nf; i++) {
+                for (int c = 0; c < nch; c++)
+                    b->segment[i] += fr[i * nch + c];
+                b->segment[i] /= nch;
+            }
+            free(fr);
+            b->nsegment = nf;
+            b->surf.relief.kind = SURF_RELIEF_SEGMENT;
+            return 0;
+        }
         int kind = -1;
         for (int i = 0; i < 3; i++)
             if (sx_is(a, kinds[i]))
@@ -1127,6 +1152,22 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
             (number(S, a->next->next, &b->surf.relief.width) ||
              !(b->surf.relief.width > 0 && b->surf.relief.width <= b->surf.relief.scale)))
             return a->next->next->kind == SX_NUM ? ERR(a->next->next, "a grid's bumps are 0 to SCALE wide") : -1;
+        return 0;
+    }
+    if (!strcmp(k, "gains")) { /* (gains contact|impact MASTER OTHER DIRECT LIMIT) */
+        if (arity(S, p, 6, 6, "(gains contact|impact MASTER OTHER DIRECT LIMIT)"))
+            return -1;
+        if (!sx_is(a, "contact") && !sx_is(a, "impact"))
+            return ERR(a, "expected contact or impact");
+        double v[4];
+        int i = 0;
+        for (const sx *x = a->next; x; x = x->next)
+            if (number(S, x, &v[i++]))
+                return -1;
+        if (!(isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]) && v[3] > 0))
+            return ERR(p, "gains are numbers and a limit (N) above 0");
+        surf_gains *g = sx_is(a, "contact") ? &b->surf.contact : &b->surf.impact;
+        g->master = v[0], g->other = v[1], g->direct = v[2], g->limit = v[3];
         return 0;
     }
     if (!strcmp(k, "skid")) { /* (skid DECEL THICKNESS) */
@@ -1339,6 +1380,8 @@ static int sw_build(const wdrt_scene *S, double fs, wdrt_bodies **out, swtl *T) 
     c.contacts = ncont ? ncont : 1;
     c.queue = 1 << 16;
     c.active_modes = S->active_modes;
+    for (int i = 0; i < S->nbodies; i++)
+        c.relief_frames += S->bodies[i].nsegment;
     wdrt_bodies *h;
     if (wdrt_bodies_new(&c, &h) != WDRT_OK)
         return -1;
@@ -1358,7 +1401,13 @@ static int sw_build(const wdrt_scene *S, double fs, wdrt_bodies **out, swtl *T) 
         b.relief = sb->surf.relief.kind == SURF_RELIEF_GRID   ? WDRT_RELIEF_GRID
                    : sb->surf.relief.kind == SURF_RELIEF_NONE ? WDRT_RELIEF_NONE
                                                               : WDRT_RELIEF_NOISE;
+        b.relief = sb->segment ? WDRT_RELIEF_SEGMENT : b.relief;
         b.relief_scale = sb->surf.relief.scale, b.relief_width = sb->surf.relief.width;
+        b.relief_samples = sb->segment, b.relief_nsamples = sb->nsegment;
+        b.contact_gains = (wdrt_gains){sb->surf.contact.master, sb->surf.contact.other, sb->surf.contact.direct,
+                                       sb->surf.contact.limit};
+        b.impact_gains = (wdrt_gains){sb->surf.impact.master, sb->surf.impact.other, sb->surf.impact.direct,
+                                      sb->surf.impact.limit};
         b.cutoff_roll = sb->surf.cutoff_roll, b.cutoff_slip = sb->surf.cutoff_slip;
         b.gain = sb->gain, b.quiet = sb->quiet;
         b.placed = sb->placed;
@@ -1691,7 +1740,7 @@ void wdrt_scene_free(wdrt_scene *S) {
     for (int i = 0; i < S->ncx; i++)
         complex_free(&S->cx[i]);
     for (int i = 0; i < S->nbodies; i++)
-        free(S->bodies[i].modes), free(S->bodies[i].netlist);
+        free(S->bodies[i].modes), free(S->bodies[i].netlist), free(S->bodies[i].segment);
     free(S->bodies);
     free(S->cx);
     free(S->voices);

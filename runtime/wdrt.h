@@ -345,7 +345,15 @@ typedef struct wdrt_mode {
     double gain;  /* output units per N s of impulse */
 } wdrt_mode;
 
-typedef enum wdrt_relief { WDRT_RELIEF_NONE, WDRT_RELIEF_NOISE, WDRT_RELIEF_GRID } wdrt_relief;
+typedef enum wdrt_relief { WDRT_RELIEF_NONE, WDRT_RELIEF_NOISE, WDRT_RELIEF_GRID, WDRT_RELIEF_SEGMENT } wdrt_relief;
+
+/* How a surface's excitation is routed (Menzies' Figure 4): times
+ * master, clipped to +-limit (N), then whole to its own body's resonator,
+ * times other to the other body's, times direct to its own heard
+ * unresonated (output units per N). */
+typedef struct wdrt_gains {
+    double master, other, direct, limit;
+} wdrt_gains;
 
 typedef struct wdrt_body {
     /* what rings: modes of its own, a compiled voice driven through one of
@@ -359,8 +367,11 @@ typedef struct wdrt_body {
     double hardness;      /* N/m: the surface's stiffness in contact */
     double damping;       /* 1/s: added to the resonators it touches */
     wdrt_relief relief;
-    double relief_scale;  /* m: the relief's grain or grid spacing */
+    double relief_scale;  /* m: the relief's grain, grid spacing, or metres per sample */
     double relief_width;  /* m: a grid's bumps */
+    const double *relief_samples; /* SEGMENT: an audio segment read as the relief */
+    long relief_nsamples;         /* (copied; the config's relief_frames hold them) */
+    wdrt_gains contact_gains, impact_gains; /* default 1, 0, 0, unlimited */
     double cutoff_roll;   /* Hz: a contact's low-pass when it rolls */
     double cutoff_slip;   /* Hz: when it slips at 1 m/s */
     double gain;          /* of what its resonator is heard at */
@@ -381,6 +392,7 @@ typedef struct wdrt_bodies_config {
     int contacts;    /* live at once, and the ids a caller may use; default 32 */
     int impacts;     /* sounding at once; default 64 */
     int queue;       /* events the physics queue holds; default 4096 */
+    long relief_frames; /* samples of segment reliefs, all bodies together; default 0 */
     int active_modes;/* modes that may ring at once, all resonators together;
                         0: no limit.  A resonator struck while asleep gets
                         what is left (its loudest modes first; none: the
@@ -417,6 +429,9 @@ wdrt_result wdrt_bodies_impact(wdrt_bodies *b, uint64_t frame, int a, int c, dou
 wdrt_result wdrt_bodies_contact(wdrt_bodies *b, uint64_t frame, int id, int a, int c, double v_a,
                                 double v_b, double slip, double force);
 wdrt_result wdrt_bodies_contact_stop(wdrt_bodies *b, uint64_t frame, int id);
+/* Switches a body's sound on or off from that frame (what touches it then
+ * is not heard from it). */
+wdrt_result wdrt_bodies_enable(wdrt_bodies *b, uint64_t frame, int body, int on);
 
 /* Counts since it was made: contacts and impacts in use and their
  * high-water marks, events refused (a full pool), resonators awake and

@@ -435,13 +435,83 @@ static void test_mode_limit(void **st) {
     free(y[1]);
 }
 
+static void test_gains_segment_enable(void **st) {
+    (void)st;
+    /* Figure 4's direct gain: an impact's pulse heard unresonated sums to
+     * direct x J x fs (its samples hold the mean force over each) */
+    long n;
+    double *y = render("(length 0.2) (sleep off)\n"
+                       "(body a (modes (440 0.5 0)) (mass 0.05) (hardness 1e6) (gains impact 1 0 0.5 1e9))\n"
+                       "(body b (modes (90 0.1 1)) (mass 5) (gain 0))\n"
+                       "(at 0.01 (impact a b (impulse 0.002)))\n",
+                       &n, NULL);
+    double sum = 0;
+    for (long i = 0; i < n; i++)
+        sum += y[i];
+    printf("direct gain: sum %.12g, want %.12g\n", sum, 0.5 * 0.002 * FS);
+    assert_true(fabs(sum - 0.5 * 0.002 * FS) < 1e-9 * 0.5 * 0.002 * FS);
+    free(y);
+    /* an audio segment as a relief: a sine of 100 samples a period, one
+     * sample every 0.01 mm, read at 0.5 m/s: 500 Hz */
+    double seg[1000];
+    for (int i = 0; i < 1000; i++)
+        seg[i] = sin(2 * M_PI * i / 100.0);
+    char wav[256];
+    snprintf(wav, sizeof wav, "%s/seg.wav", g_dir);
+    assert_int_equal(wdrt_wav_write(wav, 1, 48000, seg, 1000), WDRT_OK);
+    y = render("(length 0.5) (sleep off)\n"
+               "(body puck (modes (700 0.05 1)) (mass 0.2) (gain 0) (relief none))\n"
+               "(body table (modes (10 0.05 0)) (mass 20) (relief \"seg.wav\" 0.00001) (slip 20000) (roll 20000)\n"
+               "  (gains contact 1 0 1 1e9))\n"
+               "(at 0.0 (contact puck table (force 1) (slip 0.5) (until 0.5)))\n",
+               &n, NULL);
+    int zc = 0;
+    for (long i = (long)(0.1 * FS); i < (long)(0.4 * FS); i++)
+        zc += (y[i] > 0) != (y[i - 1] > 0);
+    printf("segment relief: %d crossings in 0.3 s (500 Hz: 300)\n", zc);
+    assert_true(abs(zc - 300) <= 2);
+    free(y);
+    /* a body switched off is not heard (the C API) */
+    wdrt_bodies_config bc = wdrt_bodies_config_init(FS);
+    wdrt_bodies *h;
+    assert_int_equal(wdrt_bodies_new(&bc, &h), WDRT_OK);
+    wdrt_mode m1[1] = {{440, 0.5, 1}}, m2[1] = {{90, 0.1, 0}};
+    wdrt_body b = wdrt_body_init();
+    b.modes = m1, b.nmodes = 1;
+    assert_int_equal(wdrt_bodies_add(h, &b), 0);
+    b.modes = m2;
+    assert_int_equal(wdrt_bodies_add(h, &b), 1);
+    wdrt_pool_config pc[2];
+    wdrt_bodies_pools(h, pc, 0);
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 2, pc);
+    wdrt_bodies_attach(h, &ec);
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    assert_int_equal(wdrt_bodies_enable(h, 0, 0, 0), WDRT_OK);
+    assert_int_equal(wdrt_bodies_impact(h, 100, 0, 1, 0.01, 0, 0), WDRT_OK);
+    assert_int_equal(wdrt_bodies_enable(h, 9600, 0, 1), WDRT_OK);
+    assert_int_equal(wdrt_bodies_impact(h, 9700, 0, 1, 0.01, 0, 0), WDRT_OK);
+    double out[12000];
+    for (long i = 0; i < 12000; i += 64)
+        wdrt_engine_process(e, out + i, (uint32_t)(12000 - i < 64 ? 12000 - i : 64));
+    double off = 0, on = 0;
+    for (long i = 0; i < 9600; i++)
+        off = fmax(off, fabs(out[i]));
+    for (long i = 9700; i < 12000; i++)
+        on = fmax(on, fabs(out[i]));
+    printf("enable: off %.3g, on %.3g\n", off, on);
+    assert_true(off == 0 && on > 1e-4);
+    wdrt_engine_uninit(e, NULL);
+    wdrt_bodies_free(h);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_impact_as_world_alone), cmocka_unit_test(test_sleep_and_wake),
         cmocka_unit_test(test_shared_resonator),      cmocka_unit_test(test_placed_body),
         cmocka_unit_test(test_contact_curves),        cmocka_unit_test(test_body_errors),
         cmocka_unit_test(test_voice_body),            cmocka_unit_test(test_c_api),
-        cmocka_unit_test(test_mode_limit),
+        cmocka_unit_test(test_mode_limit),            cmocka_unit_test(test_gains_segment_enable),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
