@@ -101,20 +101,21 @@ build/examples/embed: examples/embed.c examples/score.h build/examples/piano_key
 
 # The event storm again under ThreadSanitizer: the engine and the test
 # built with -fsanitize=thread (the counting allocator steps aside).
-build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/bodies.c runtime/surf.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	@mkdir -p $(dir $@)
-	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -iquote runtime -iquote gen -o $@ tests/test_storm.c runtime/engine.c \
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -iquote runtime -iquote gen -o $@ tests/test_storm.c runtime/engine.c runtime/bodies.c runtime/surf.c \
 		$(TLIB_OBJS) build/libwdc.a build/libwdrt.a -lcmocka $(LDLIBS) -lpthread
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
 	build/bench/rtbench
 	build/bench/spacebench
 	build/bench/treebench
+	build/bench/surfbench
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
@@ -129,6 +130,10 @@ build/bench/rtbench: build/bench/rtbench.o build/bench/benchlib.o $(TLIB_OBJS) b
 # Timbre trees: the compiled program against the per-sample walk and hand C.
 build/bench/treebench: build/bench/treebench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+# Bodies: one body in contact, 1000 bodies of which 10 are struck, sleeping bodies, the world's unit costs.
+build/bench/surfbench: build/bench/surfbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lpthread
 
 # The spatial layer's cost per moving source, against OpenAL Soft (libopenal-dev).
 build/bench/spacebench: build/bench/spacebench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a

@@ -197,7 +197,122 @@ static void test_storm(void **s) {
 }
 
 
+/* ---- bodies: a physics thread ---- */
+
+#define NHIT 20000
+#define HIT_EVERY 7
+
+/* Bodies on a shared resonator, placed; event i: an impact, or a
+ * contact's start, update or stop (ids 0..3). */
+static wdrt_engine *make_bodies(wdrt_bodies **hb) {
+    wdrt_bodies_config bc = wdrt_bodies_config_init(FS);
+    bc.queue = 256;
+    bc.contacts = 4;
+    assert_int_equal(wdrt_bodies_new(&bc, hb), WDRT_OK);
+    static const wdrt_mode jar[3] = {{820, 0.3, 1}, {1910, 0.2, 0.6}, {3300, 0.1, 0.4}};
+    static const wdrt_mode floor_[2] = {{120, 0.2, 1}, {300, 0.1, 0.5}};
+    wdrt_body b = wdrt_body_init();
+    b.modes = jar, b.nmodes = 3, b.placed = 1, b.pos[1] = 2;
+    assert_int_equal(wdrt_bodies_add(*hb, &b), 0);
+    b.modes = floor_, b.nmodes = 2, b.pos[0] = 1;
+    assert_int_equal(wdrt_bodies_add(*hb, &b), 1);
+    b.nmodes = 0, b.share = 0;
+    for (int i = 2; i < 6; i++)
+        assert_int_equal(wdrt_bodies_add(*hb, &b), i);
+    static wdrt_pool_config pc[2];
+    assert_int_equal(wdrt_bodies_pools(*hb, pc, 0), WDRT_OK);
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 2, 2, pc);
+    ec.space.sources = 4;
+    wdrt_bodies_attach(*hb, &ec);
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    return e;
+}
+
+static uint64_t post_hit(wdrt_bodies *h, int i, int spin) {
+    uint64_t f = 500 + (uint64_t)i * HIT_EVERY;
+    wdrt_result r;
+    do {
+        int id = i % 4, a = 2 + id;
+        switch (i % 6) {
+        case 0:
+        case 3: r = wdrt_bodies_impact(h, f, a, i % 2, 0.001 + 0.0001 * (i % 9), 0.5, 0.1 * (i % 3)); break;
+        case 1: r = wdrt_bodies_contact(h, f, id, a, 1, 0.1, 0.3, 0.2, 0.5 + (i % 5)); break;
+        case 2: r = wdrt_bodies_contact(h, f, id, a, 1, 0.2, 0.5, 0.3, 0.2); break;
+        case 4: r = wdrt_bodies_contact_stop(h, f, id); break;
+        default: r = wdrt_bodies_enable(h, f, a, i % 12 != 5); break;
+        }
+        if (r == WDRT_QUEUE_FULL && spin)
+            sched_yield();
+    } while (r == WDRT_QUEUE_FULL && spin);
+    assert_int_equal(r, WDRT_OK);
+    return f;
+}
+
+typedef struct hproducer {
+    wdrt_bodies *h;
+    uint64_t posted;
+} hproducer;
+
+static void *produce_hits(void *arg) {
+    hproducer *p = arg;
+    for (int i = 0; i < NHIT; i++) {
+        uint64_t f = post_hit(p->h, i, 1);
+        __atomic_store_n(&p->posted, f, __ATOMIC_RELEASE);
+    }
+    __atomic_store_n(&p->posted, UINT64_MAX, __ATOMIC_RELEASE);
+    return NULL;
+}
+
+static void test_bodies_storm(void **s) {
+    (void)s;
+    const long M = 500 + (long)NHIT * HIT_EVERY + 4800;
+    wdrt_bodies *h;
+    wdrt_engine *e = make_bodies(&h);
+    double *ref = calloc((size_t)M * 2, sizeof(double));
+    int next = 0;
+    for (long pos = 0; pos < M; pos += HOST) {
+        uint32_t n = (uint32_t)(M - pos < HOST ? M - pos : HOST);
+        while (next < NHIT && 500 + (uint64_t)next * HIT_EVERY < (uint64_t)(pos + n))
+            post_hit(h, next++, 0);
+        process(e, ref + pos * 2, n);
+    }
+    wdrt_engine_uninit(e, NULL);
+    wdrt_bodies_free(h);
+    e = make_bodies(&h);
+    hproducer p = {h, 0};
+    double *out = calloc((size_t)M * 2, sizeof(double));
+    ca_allocs = 0;
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, produce_hits, &p), 0);
+    for (long pos = 0; pos < M; pos += HOST) {
+        uint32_t n = (uint32_t)(M - pos < HOST ? M - pos : HOST);
+        while (__atomic_load_n(&p.posted, __ATOMIC_ACQUIRE) < (uint64_t)(pos + n) &&
+               __atomic_load_n(&p.posted, __ATOMIC_ACQUIRE) != UINT64_MAX)
+            sched_yield();
+        process(e, out + pos * 2, n);
+    }
+    pthread_join(th, NULL);
+    wdrt_bodies_stats bs;
+    wdrt_bodies_get_stats(h, &bs);
+    long diff = 0;
+    double pk = 0;
+    for (long i = 0; i < M * 2; i++)
+        diff += out[i] != ref[i], pk = fmax(pk, fabs(out[i]));
+    print_message("bodies storm: %d events, contacts high-water %d, impacts high-water %d, %llu refused, %ld "
+                  "allocations in process, %ld samples differ, peak %.3g\n",
+                  NHIT, bs.contacts_hwm, bs.impacts_hwm, (unsigned long long)bs.refused, ca_allocs, diff, pk);
+    assert_int_equal(ca_allocs, 0);
+    assert_int_equal(diff, 0);
+    assert_true(pk > 1e-4 && isfinite(pk));
+    free(out);
+    free(ref);
+    wdrt_engine_uninit(e, NULL);
+    wdrt_bodies_free(h);
+}
+
 int main(void) {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(ca_test_counter_counts), cmocka_unit_test(test_storm)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(ca_test_counter_counts), cmocka_unit_test(test_storm),
+                                       cmocka_unit_test(test_bodies_storm)};
     return cmocka_run_group_tests(tests, setup, teardown);
 }
