@@ -620,15 +620,20 @@ static int f_room(wdrt_scene *S, const sx *f) {
     return 0;
 }
 
+/* A form of one whole number in [lo, hi]: (NAME N). */
+static int whole_form(wdrt_scene *S, const sx *f, const char *usage, double lo, double hi, const char *range, int *n) {
+    double x;
+    if (arity(S, f, 2, 2, usage) || number(S, f->head->next, &x))
+        return -1;
+    if (x != floor(x) || x < lo || x > hi)
+        return ERR(f->head->next, "%s", range);
+    *n = (int)x;
+    return 0;
+}
+
 /* sources = '(' 'sources' N ')'   delay lines: placed voices heard at once */
 static int f_sources(wdrt_scene *S, const sx *f) {
-    double x;
-    if (arity(S, f, 2, 2, "(sources N)") || number(S, f->head->next, &x))
-        return -1;
-    if (x != floor(x) || x < 1 || x > 4096)
-        return ERR(f->head->next, "1 to 4096 sources");
-    S->sources = (int)x;
-    return 0;
+    return whole_form(S, f, "(sources N)", 1, 4096, "1 to 4096 sources", &S->sources);
 }
 
 /* ---- voices ---- */
@@ -1215,13 +1220,7 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
 
 /* active-modes = '(' 'active-modes' N ')' */
 static int f_active_modes(wdrt_scene *S, const sx *f) {
-    double x;
-    if (arity(S, f, 2, 2, "(active-modes N)") || number(S, f->head->next, &x))
-        return -1;
-    if (x != floor(x) || x < 1 || x > 1e6)
-        return ERR(f->head->next, "a whole number of modes, at least 1");
-    S->active_modes = (int)x;
-    return 0;
+    return whole_form(S, f, "(active-modes N)", 1, 1e6, "a whole number of modes, at least 1", &S->active_modes);
 }
 
 /* body = '(' 'body' NAME property* ')' */
