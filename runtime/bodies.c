@@ -47,6 +47,9 @@ struct wdrt_bodies {
     double *out;         /* [nres][BLOCK]: what each resonator made of the segment */
     int *cursor;         /* per resonator: frames its tap has read */
     int *active;         /* per resonator: the modes it was admitted with */
+    unsigned char *clean;/* per resonator: its row of out is all zeros */
+    int *act, nact;      /* the resonators that may sound: excited or awake */
+    unsigned char *inact;
     int pool0;           /* the engine pool of resonator 0 */
     surf_contact *ids;   /* per contact id */
     bev *q;              /* the physics queue */
@@ -94,7 +97,7 @@ static void tap_process(void *state, const double *const *in, double *const *out
     const double *y = t->h->out + (size_t)t->res * BLOCK;
     for (int i = 0; i < n; i++)
         out[0][i] = c + i < BLOCK ? y[c + i] : 0;
-    t->h->cursor[t->res] = c + n;
+    t->h->cursor[t->res] = c + n < BLOCK ? c + n : BLOCK; /* past the block: silence */
 }
 
 static double tap_energy(const void *state) {
@@ -142,7 +145,7 @@ static void vtap_process(void *state, const double *const *in, double *const *ou
     if (t->h) {
         int cur = t->h->cursor[t->res];
         ip[t->input] = cur + n <= BLOCK ? t->h->out + (size_t)t->res * BLOCK + cur : zero;
-        t->h->cursor[t->res] = cur + n;
+        t->h->cursor[t->res] = cur + n < BLOCK ? cur + n : BLOCK;
     }
     for (int k = 0; k < c->n_outputs && k < 64; k++)
         op[k] = k == t->output ? out[0] : zero + BLOCK * (1 + (size_t)k);
@@ -221,6 +224,9 @@ void wdrt_bodies_free(wdrt_bodies *h) {
     free(h->out);
     free(h->cursor);
     free(h->active);
+    free(h->clean);
+    free(h->act);
+    free(h->inact);
     free(h->ids);
     free(h->q);
     free(h);
@@ -251,6 +257,11 @@ wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     h->out = calloc(nb * BLOCK, sizeof *h->out);
     h->cursor = calloc(nb, sizeof *h->cursor);
     h->active = calloc(nb, sizeof *h->active);
+    h->act = calloc(nb, sizeof *h->act);
+    h->inact = calloc(nb, 1);
+    h->clean = malloc(nb);
+    if (h->clean)
+        memset(h->clean, 1, nb);
     h->ids = calloc((size_t)c->contacts, sizeof *h->ids);
     h->q = calloc(qn, sizeof *h->q);
     surf_config sc = surf_config_init(c->rate);
@@ -263,7 +274,7 @@ wdrt_result wdrt_bodies_new(const wdrt_bodies_config *c, wdrt_bodies **out) {
     sc.max_contacts = c->contacts;
     sc.max_impacts = c->impacts;
     sc.relief_frames = c->relief_frames;
-    if (!h->body_res || !h->res_body || !h->body || !h->gain || !h->vc || !h->refs || !h->out || !h->cursor || !h->active ||
+    if (!h->body_res || !h->res_body || !h->body || !h->gain || !h->vc || !h->refs || !h->out || !h->cursor || !h->active || !h->clean || !h->act || !h->inact ||
         !h->ids || !h->q || surf_init(&sc, NULL, &h->w) != WDRT_OK) {
         wdrt_bodies_free(h);
         return WDRT_OUT_OF_MEMORY;
@@ -386,8 +397,21 @@ static int admit(wdrt_bodies *h, int body) {
     return n > 0;
 }
 
+/* Resonator r may sound from now on: the excitations phase visits it. */
+static void visit(wdrt_bodies *h, int r) {
+    if (h->inact[r])
+        return;
+    h->inact[r] = 1;
+    h->act[h->nact++] = r;
+}
+
 static void apply(wdrt_bodies *h, const bev *x) {
     surf_world *w = h->w;
+    if (x->kind != BE_STOP) {
+        visit(h, h->body_res[x->a]);
+        if (x->kind != BE_ENABLE)
+            visit(h, h->body_res[x->b]);
+    }
     if (x->kind == BE_IMPACT || (x->kind == BE_CONTACT && !h->ids[x->id])) {
         int ra = admit(h, x->a), rb = admit(h, x->b);
         h->refused += !ra && !rb; /* neither may ring: no room under the limit */
@@ -431,9 +455,18 @@ static void excite(void *user, uint64_t t0, int nb, unsigned char *wake) {
         if (h->head != tail && h->q[h->head & h->qmask].frame < t0 + (uint64_t)nb)
             upto = (int)(h->q[h->head & h->qmask].frame - t0);
         int m = surf_process(h->w, NULL, upto - done);
-        for (int r = 0; r < h->nres; r++) {
+        for (int j = 0; j < h->nact; j++) { /* the others are asleep, their rows zero */
+            int r = h->act[j];
             const double *y = surf_output(h->w, r, 0), *dy = h->vc[r].process ? NULL : surf_output(h->w, r, SURF_DIRECT);
             double *o = h->out + (size_t)r * BLOCK + done;
+            if (!y && !dy) { /* silent: a row already zero stays so (most resonators sleep) */
+                if (!h->clean[r] || done) {
+                    memset(o, 0, sizeof(double) * (size_t)m);
+                    h->clean[r] = done == 0 && m == BLOCK ? 1 : 0;
+                }
+                continue;
+            }
+            h->clean[r] = 0;
             for (int i = 0; i < m; i++)
                 o[i] = y ? h->gain[r] * y[i] : 0;
             if (dy) /* Figure 4's direct path: the excitation heard unresonated */
@@ -446,10 +479,15 @@ static void excite(void *user, uint64_t t0, int nb, unsigned char *wake) {
             break;
         done += m;
     }
-    for (int r = 0; r < h->nres; r++) {
+    for (int j = 0; j < h->nact; j++) {
+        int r = h->act[j];
         h->cursor[r] = 0;
         if (surf_resonator_awake(h->w, r))
             wake[h->pool0 + r] = 1;
+        else if (h->clean[r]) { /* asleep and silent: no longer visited until excited */
+            h->inact[r] = 0;
+            h->act[j--] = h->act[--h->nact];
+        }
     }
 }
 

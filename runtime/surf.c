@@ -980,7 +980,7 @@ static void apply_damping(surf_world *w) {
     }
     for (int i = 0; i < w->nres; i++) {
         resonator *r = &w->res[i];
-        double d = fmin(r->damp_next, r->max_damp);
+        double d = r->damp_next < r->max_damp ? r->damp_next : r->max_damp; /* no call: every resonator, every block */
         if (d != r->damp) {
             r->damp = d;
             set_coefs(w, r);
