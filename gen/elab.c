@@ -7,10 +7,12 @@
  * damper a resistor (R = 1/c), a force a current source, a velocity a
  * voltage source.  A pot is two resistors, "P.aw" and "P.wb". */
 #include <ctype.h>
+#include <errno.h>
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "gen.h"
 
@@ -93,6 +95,41 @@ static bool is_c_ident(const char *s) {
         if (!isalnum((unsigned char)*s) && *s != '_')
             return false;
     return true;
+}
+
+/* C's keywords (C99 and C11), which no generated symbol may be named. */
+static const char *const c_keywords[] = {
+    "auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else", "enum",
+    "extern", "float", "for", "goto", "if", "inline", "int", "long", "register", "restrict", "return",
+    "short", "signed", "sizeof", "static", "struct", "switch", "typedef", "union", "unsigned", "void",
+    "volatile", "while", "_Alignas", "_Alignof", "_Atomic", "_Bool", "_Complex", "_Generic",
+    "_Imaginary", "_Noreturn", "_Static_assert", "_Thread_local",
+};
+
+/* Why a voice name cannot be used, or NULL if it can.  The voice's name
+ * names its files (NAME.c, NAME.h, beside wdvoice.h) and prefixes its C
+ * symbols (NAME_real, NAME_state, NAME_class), which share a translation
+ * unit with the voice ABI (wdvoice.h: wdv_*, WDV_*) and, in a host, the
+ * runtime (wdrt_*); an LV2 bundle also holds NAME.ttl. */
+static const char *voice_name_clash(const char *s) {
+    if (!is_c_ident(s))
+        return "is not a C identifier";
+    for (size_t i = 0; i < sizeof c_keywords / sizeof c_keywords[0]; i++)
+        if (!strcmp(s, c_keywords[i]))
+            return "is a C keyword";
+    if (s[0] == '_')
+        return "starts with '_' (such C names are reserved)";
+    if (!strcasecmp(s, "wdvoice"))
+        return "would write its header over the voice ABI's, wdvoice.h";
+    if (!strcmp(s, "manifest"))
+        return "would write its LV2 description over the bundle's manifest.ttl";
+    if (!strcmp(s, "wdv"))
+        return "would define wdv_class, the voice ABI's own type";
+    if (!strncasecmp(s, "wdv_", 4))
+        return "takes the voice ABI's prefix wdv_";
+    if (!strcmp(s, "wdrt") || !strncmp(s, "wdrt_", 5))
+        return "takes the runtime's prefix wdrt_";
+    return NULL;
 }
 
 /* Node index of a name in a scope, creating it if `create`. */
@@ -236,13 +273,21 @@ static const char *resolve_path(SrcFile *from, const char *name) {
     const char *slash = strrchr(from->path, '/');
     if (slash) {
         const char *p = format("%.*s/%s", (int)(slash - from->path), from->path, name);
-        FILE *f = fopen(p, "r");
-        if (f) {
-            fclose(f);
+        struct stat st; /* not fopen: opening a FIFO would wait for a writer */
+        if (stat(p, &st) == 0)
             return p;
-        }
     }
     return name;
+}
+
+/* Why read_file refused a file it could open, from its errno, or NULL for
+ * an error of the system (no such file, no permission). */
+static const char *refused_why(int err) {
+    if (err == EINVAL)
+        return "is not a regular file";
+    if (err == EFBIG)
+        return "is larger than 16 MiB";
+    return NULL;
 }
 
 static void include(Elab *E, Line *l, BlockDef *into) {
@@ -257,8 +302,12 @@ static void include(Elab *E, Line *l, BlockDef *into) {
         error_at(l->args[0].pos, "includes nested too deeply");
     size_t len;
     char *text = read_file(path, &len);
-    if (!text)
+    if (!text) {
+        const char *why = refused_why(errno);
+        if (why)
+            error_at(l->args[0].pos, "included file '%s' %s", l->args[0].name, why);
         error_at(l->args[0].pos, "cannot read included file '%s'", l->args[0].name);
+    }
     if (strlen(text) != len)
         error_at(l->args[0].pos, "included file '%s' contains a NUL byte", l->args[0].name);
     SrcFile *f = srcfile_new(path, text);
@@ -324,6 +373,42 @@ static double const_number(const Value *v, const char *what) {
     return x;
 }
 
+/* The largest magnitude of a source's drive or of an initial condition,
+ * in SI units (V, A, m/s, N, m, Pa, ...).  No physical voice comes near it
+ * (a petavolt), and it keeps the voice's arithmetic finite: waves are sums
+ * of a few such values, and energies their squares over port resistances,
+ * which in single precision must stay below FLT_MAX (3.4e38); 1e308 in
+ * double overflows at the first sum. */
+#define MAX_MAGNITUDE 1e15
+
+/* Refuses x at pos unless |x| <= MAX_MAGNITUDE at the default params and
+ * with each param it reads alone at either finite bound. */
+static void check_magnitude(Elab *E, const Expr *x, SrcPos pos, const char *what, const char *unit) {
+    double *p = arena_alloc(sizeof(double) * (size_t)(E->params.len + 1));
+    for (int j = 0; j < E->params.len; j++)
+        p[j] = ((Param *)E->params.data[j])->def;
+    double v = expr_eval(x, p);
+    if (!(fabs(v) <= MAX_MAGNITUDE))
+        error_at(pos, "%s is %s; its magnitude must not exceed %g %s", what,
+                 isnan(v) ? "not a number" : format("%g %s", v, unit), MAX_MAGNITUDE, unit);
+    for (int j = 0; j < E->params.len && j < 64; j++) {
+        if (!(expr_params(x) >> j & 1))
+            continue;
+        const Param *pr = E->params.data[j];
+        for (int s = 0; s < 2; s++) {
+            double save = p[j];
+            p[j] = s ? pr->max : pr->min;
+            v = isfinite(p[j]) ? expr_eval(x, p) : 0;
+            if (!(fabs(v) <= MAX_MAGNITUDE))
+                error_at(pos, "%s %s when param '%s' = %g; its magnitude must not exceed %g %s "
+                         "(narrow the param's range)", what,
+                         isnan(v) ? "is not a number" : format("reaches %g %s", v, unit), pr->name, p[j],
+                         MAX_MAGNITUDE, unit);
+            p[j] = save;
+        }
+    }
+}
+
 static void dir_param(Elab *E, Line *l) {
     if (!is_c_ident(l->name))
         error_at(l->namepos, "param name '%s' is not an identifier", l->name);
@@ -380,8 +465,9 @@ static void dir_simple(Elab *E, Line *l) {
     if (!strcmp(d, ".voice")) {
         if (E->have_voice)
             error_at(l->pos, "second .voice line");
-        if (!is_c_ident(l->args[0].name))
-            error_at(l->args[0].pos, "voice name '%s' is not a C identifier", l->args[0].name);
+        const char *why = voice_name_clash(l->args[0].name);
+        if (why)
+            error_at(l->args[0].pos, "voice name '%s' %s", l->args[0].name, why);
         c->name = l->args[0].name;
         E->have_voice = true;
     } else if (!strcmp(d, ".domain")) {
@@ -484,6 +570,8 @@ static void set_drive(Elab *E, Scope *S, Elem *e, const Value *v) {
             error_at(v->pos, "unknown input or param '%s' (declare inputs with .input)", v->name);
     }
     e->drive = value_expr(E, S, v, "the drive");
+    check_magnitude(E, e->drive, v->pos, format("the drive of %s '%s'", block_desc[e->user_kind].desc, e->name),
+                    domain_unit(E->c->domain, e->kind == E_V ? 'v' : 'i'));
 }
 
 static Expr *div1(Expr *x) { return expr_bin(EX_DIV, expr_num(1, x->pos), x); }
@@ -929,8 +1017,11 @@ static void element(Elab *E, Scope *S, Line *l) {
             error_at(key(l, kn)->pos, "value of '%s' given twice", l->name);
         e->val = arg ? value_expr(E, S, arg, "the value") : need_key(E, S, l, kn);
         KeyVal *ic = key(l, "IC") ? key(l, "IC") : key(l, "ic");
-        if (ic)
+        if (ic) {
             e->ic = value_expr(E, S, &ic->val, "IC");
+            check_magnitude(E, e->ic, ic->val.pos, format("the initial %s of %s '%s'", k == E_C ? "voltage" : "current",
+                                                          d->desc, e->name), k == E_C ? "V" : "A");
+        }
         break;
     }
     case BK_V: case BK_I: case BK_FORCE: case BK_VELOCITY: {
@@ -941,6 +1032,11 @@ static void element(Elab *E, Scope *S, Line *l) {
         set_drive(E, S, e, arg);
         if (key(l, "R"))
             e->val = value_expr(E, S, &key(l, "R")->val, "R");
+        /* a voltage source with no resistance in series is the ideal one,
+         * as if R= were not given (a value that params move stays a
+         * resistance, checked positive) */
+        if (isv && e->val && expr_is_const(e->val) && expr_eval(e->val, NULL) == 0)
+            e->val = NULL;
         break;
     }
     case BK_MASS:
@@ -1199,6 +1295,8 @@ static void dir_ic(Elab *E, Line *l) {
         if (ic->node == 0)
             error_at(r->argpos[0], "ground has no initial condition");
         ic->val = value_expr(E, &top, &l->refvals[i], "the initial condition");
+        check_magnitude(E, ic->val, l->refvals[i].pos, format("the initial condition %c(%s)", r->fn, r->arg[0]),
+                        domain_unit(E->c->domain, r->fn));
         ic->pos = r->pos;
         for (int j = 0; j < E->ics.len; j++) {
             IcSpec *o = E->ics.data[j];
@@ -1341,8 +1439,8 @@ static const char *base_name(const char *path) {
     for (char *p = n; *p; p++)
         if (!isalnum((unsigned char)*p))
             *p = '_';
-    if (!isalpha((unsigned char)n[0]))
-        n = format("v_%s", n);
+    if (!isalpha((unsigned char)n[0]) || voice_name_clash(n))
+        n = format("v_%s", n); /* the file's name is not the user's choice of a C name */
     return n;
 }
 
@@ -1433,7 +1531,12 @@ Circuit *wdc_load(const char *path) {
     size_t len;
     char *text = read_file(path, &len);
     if (!text) {
-        fprintf(diag.out ? diag.out : stderr, "wdc: error: cannot read '%s'\n", path);
+        const char *why = refused_why(errno);
+        FILE *out = diag.out ? diag.out : stderr;
+        if (why)
+            fprintf(out, "%s: error: the netlist %s\n", path, why);
+        else
+            fprintf(out, "%s: error: cannot read the netlist: %s\n", path, strerror(errno));
         diag.errors++;
         return NULL;
     }
@@ -1461,11 +1564,14 @@ const char *domain_unit(Domain d, char fn) {
 }
 
 void circuit_dump(const Circuit *c, FILE *out) {
-    static const char *kn[] = {"R", "C", "L", "V", "I", "NL", "W"};
+    static const char *const kn[] = {[E_R] = "R", [E_C] = "C",   [E_L] = "L", [E_V] = "V",
+                                     [E_I] = "I", [E_NL] = "NL", [E_W] = "W", [E_S] = "S"};
     double *p = circuit_defaults(c);
     fprintf(out, "voice %s, %d nodes, %d elements, rate %g\n", c->name, c->nnodes, c->nelems, c->rate);
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
+        if ((unsigned)e->kind >= sizeof kn / sizeof kn[0] || !kn[e->kind])
+            die("element '%s' of unknown kind %d", e->name, (int)e->kind);
         fprintf(out, "  %s %s %s %s", kn[e->kind], e->name, c->nodes[e->n[0]], c->nodes[e->n[1]]);
         if (e->val)
             fprintf(out, " %.6g", elem_value(c, e, p));

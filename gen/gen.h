@@ -66,6 +66,9 @@ void *arena_alloc(size_t n);
 char *arena_strdup(const char *s);
 char *arena_strndup(const char *s, size_t n);
 char *format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/* The whole of a regular file of at most 16 MiB, NUL-terminated, in the
+ * arena (*len its length); NULL with errno set otherwise (EINVAL: not a
+ * regular file, EFBIG: too large). */
 char *read_file(const char *path, size_t *len);
 
 void error_at(SrcPos pos, const char *fmt, ...)

@@ -4,12 +4,23 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "gen.h"
 #include "wdrt.h"
 
 enum { EXIT_NETLIST = 1, EXIT_USAGE = 2, EXIT_TOOL = 3 };
+
+/* The longest render, s: a day.  Past it a length is surely a typo, and
+ * its buffers would not fit in memory anyway. */
+#define MAX_SECONDS 86400.0
+/* The highest --rate, Hz. */
+#define MAX_RATE 1e7
+/* The largest input amplitude or strike value accepted, in the netlist's
+ * units: beyond it a voice's arithmetic overflows before it is heard. */
+#define MAX_LEVEL 1e6
+
 
 typedef struct Opts {
     const char *file, *outdir, *render, *csv, *dot, *events, *lv2;
@@ -74,8 +85,15 @@ static Opts parse_args(int argc, char **argv) {
         else if (!strcmp(a, "--csv")) o.csv = TAKE();
         else if (!strcmp(a, "--dot")) o.dot = TAKE();
         else if (!strcmp(a, "--events")) o.events = TAKE();
-        else if (!strcmp(a, "--seconds")) o.seconds = number_arg(a, TAKE());
-        else if (!strcmp(a, "--rate")) o.rate = number_arg(a, TAKE());
+        else if (!strcmp(a, "--seconds")) {
+            o.seconds = number_arg(a, TAKE());
+            if (o.seconds > MAX_SECONDS)
+                usage_error("--seconds takes at most 86400 (a day), not '%s'", argv[i]);
+        } else if (!strcmp(a, "--rate")) {
+            o.rate = number_arg(a, TAKE());
+            if (o.rate > MAX_RATE)
+                usage_error("--rate takes at most 10 MHz (1e7), not '%s'", argv[i]);
+        }
         else if (!strcmp(a, "-delab")) o.dump_elab = true;
         else if (!strcmp(a, "-dwdf")) o.dump_wdf = true;
         else if (!strcmp(a, "--tableau")) o.tableau = true;
@@ -124,6 +142,18 @@ static Opts parse_args(int argc, char **argv) {
     return o;
 }
 
+static bool sane_level(double v) { return isfinite(v) && fabs(v) <= MAX_LEVEL; }
+
+/* calloc that reports failure as wdc's toolchain/internal status. */
+static void *checked_calloc(size_t n, size_t size, const char *what) {
+    void *p = calloc(n, size);
+    if (!p) {
+        fprintf(stderr, "wdc: error: out of memory for %s (%zu bytes)\n", what, n * size);
+        exit(EXIT_TOOL);
+    }
+    return p;
+}
+
 /* ---- input signals ---- */
 
 typedef struct Signal {
@@ -131,32 +161,46 @@ typedef struct Signal {
     long n;
 } Signal;
 
-static Signal make_signal(const char *spec, double fs, long n, int ninputs_expected) {
-    (void)ninputs_expected;
-    Signal s = {calloc((size_t)n + 1, sizeof(double)), n};
-    char kind[32] = {0};
-    double a = 1, f = 0;
+/* Parses SPEC's kind, frequency (sine) and amplitude; a usage error for
+ * anything non-finite, absurd, or (frequency) past Nyquist. */
+static void parse_spec(const char *spec, double fs, char kind[32], double *f, double *a) {
     const char *colon = strchr(spec, ':');
     size_t klen = colon ? (size_t)(colon - spec) : strlen(spec);
-    if (klen >= sizeof kind)
-        klen = sizeof kind - 1;
-    memcpy(kind, spec, klen);
+    memcpy(kind, spec, klen < 31 ? klen : 31);
+    kind[klen < 31 ? klen : 31] = 0;
     const char *rest = colon ? colon + 1 : NULL;
+    *a = 1;
+    *f = 0;
+    if (strcmp(kind, "impulse") && strcmp(kind, "step") && strcmp(kind, "sine") && strcmp(kind, "noise"))
+        usage_error("unknown input spec '%s' (impulse, step, sine:FREQ, noise or a .wav file)", spec);
     if (!strcmp(kind, "sine")) {
         if (!rest)
             usage_error("sine input needs a frequency: sine:FREQ[:A], got '%s'", spec);
         char *end;
-        f = strtod(rest, &end);
-        if (end == rest || !(f >= 0) || (*end && *end != ':'))
+        *f = strtod(rest, &end);
+        if (end == rest || (*end && *end != ':'))
             usage_error("bad sine frequency in '%s'", spec);
+        if (!(*f >= 0 && *f <= fs / 2))
+            usage_error("%s", format("the sine frequency in '%s' must be from 0 Hz to half the rate (%g Hz)", spec,
+                                     fs / 2));
         rest = *end == ':' ? end + 1 : NULL;
     }
     if (rest) {
         char *end;
-        a = strtod(rest, &end);
-        if (end == rest || *end || !isfinite(a))
+        *a = strtod(rest, &end);
+        if (end == rest || *end)
             usage_error("bad amplitude in input spec '%s'", spec);
+        if (!sane_level(*a))
+            usage_error("%s", format("the amplitude in input spec '%s' must be finite and at most %g in size", spec,
+                                     MAX_LEVEL));
     }
+}
+
+static Signal make_signal(const char *spec, double fs, long n) {
+    char kind[32];
+    double a, f;
+    parse_spec(spec, fs, kind, &f, &a);
+    Signal s = {checked_calloc((size_t)n + 1, sizeof(double), format("input '%s'", spec)), n};
     uint32_t seed = 0x9e3779b9u;
     for (long i = 0; i < n; i++) {
         if (!strcmp(kind, "impulse"))
@@ -165,13 +209,12 @@ static Signal make_signal(const char *spec, double fs, long n, int ninputs_expec
             s.data[i] = a;
         else if (!strcmp(kind, "sine"))
             s.data[i] = a * sin(2 * M_PI * f * (double)i / fs);
-        else if (!strcmp(kind, "noise")) {
+        else {
             seed ^= seed << 13;
             seed ^= seed >> 17;
             seed ^= seed << 5;
             s.data[i] = a * (2.0 * seed / 4294967295.0 - 1);
-        } else
-            usage_error("unknown input spec '%s' (impulse, step, sine:FREQ, noise or a .wav file)", spec);
+        }
     }
     return s;
 }
@@ -179,6 +222,28 @@ static Signal make_signal(const char *spec, double fs, long n, int ninputs_expec
 static bool is_wav(const char *spec) {
     size_t n = strlen(spec);
     return n > 4 && !strcasecmp(spec + n - 4, ".wav");
+}
+
+/* The first channel of a WAV input, which must be at the render's rate
+ * and hold only finite samples. */
+static Signal read_wav_input(const char *path, double fs) {
+    int nch;
+    double wfs, *frames;
+    long nf;
+    if (wdrt_wav_read(path, &nch, &wfs, &frames, &nf) != WDRT_OK) {
+        fprintf(stderr, "wdc: error: cannot read input '%s'\n", path);
+        exit(EXIT_USAGE);
+    }
+    if (fabs(wfs - fs) > 0.5)
+        usage_error("input file rate differs from the render rate (%s)", format("%g Hz vs %g Hz", wfs, fs));
+    Signal s = {checked_calloc((size_t)nf + 1, sizeof(double), format("input '%s'", path)), nf};
+    for (long i = 0; i < nf; i++) {
+        s.data[i] = frames[i * nch];
+        if (!isfinite(s.data[i]))
+            usage_error("%s", format("input '%s' holds a non-finite sample at frame %ld", path, i));
+    }
+    free(frames);
+    return s;
 }
 
 /* ---- events ---- */
@@ -194,87 +259,141 @@ typedef struct Event {
     double vals[8];
 } Event;
 
+/* What a line of an events file is read against: the circuit and the
+ * render's rate and length (tmax, s; `why` says where that limit comes
+ * from). */
+typedef struct EventCtx {
+    SrcFile *file;
+    const Circuit *c;
+    double fs, tmax;
+    const char *why;
+} EventCtx;
+
 static int cmp_event(const void *a, const void *b) {
     const Event *x = a, *y = b;
     return x->frame < y->frame ? -1 : x->frame > y->frame ? 1 : x->order - y->order;
 }
 
-static void event_error(const char *path, int line, int col, const char *msg) {
-    fprintf(stderr, "%s:%d:%d: error: %s\n", path, line, col, msg);
-    exit(EXIT_NETLIST);
+static SrcPos ev_pos(const EventCtx *x, int line, int col) { return (SrcPos){x->file, line, col}; }
+
+/* The index of param NAME, or -1. */
+static int find_param(const Circuit *c, const char *name) {
+    for (int i = 0; i < c->nparams; i++)
+        if (!strcmp(c->params[i].name, name))
+            return i;
+    return -1;
 }
 
-static Event *read_events(const char *path, const wdv_class *cls, double fs, int *nev) {
+/* The id of strike target "v(NODE)" or "x(NODE)" in the voice's
+ * ic_targets (emit.c: node by node from 1, v then x), or -1. */
+static int find_ic_target(const Circuit *c, const char *name) {
+    size_t len = strlen(name);
+    if (len < 4 || (name[0] != 'v' && name[0] != 'x') || name[1] != '(' || name[len - 1] != ')')
+        return -1;
+    for (int nd = 1; nd < c->nnodes; nd++)
+        if (strlen(c->nodes[nd]) == len - 3 && !strncmp(c->nodes[nd], name + 2, len - 3))
+            return 2 * (nd - 1) + (name[0] == 'x');
+    return -1;
+}
+
+static double ev_number(const EventCtx *x, int line, int col, const char *s) {
+    double v;
+    const char *why;
+    if (!lex_number(s, (int)strlen(s), &v, &why))
+        error_at(ev_pos(x, line, col), "expected a number, got '%s'", s);
+    if (!isfinite(v))
+        error_at(ev_pos(x, line, col), "'%s' is not a finite number", s);
+    return v;
+}
+
+/* TIME set PARAM VALUE */
+static void ev_set(const EventCtx *x, int line, char **tok, const int *col, int nt, Event *e) {
+    if (nt != 4)
+        error_at(ev_pos(x, line, col[1]), "expected: TIME set PARAM VALUE");
+    e->kind = 0;
+    e->param = find_param(x->c, tok[2]);
+    if (e->param < 0)
+        error_at(ev_pos(x, line, col[2]), "unknown param '%s'", tok[2]);
+    e->value = ev_number(x, line, col[3], tok[3]);
+}
+
+/* TIME ic TARGET=VALUE ...  (at most 8 targets) */
+static void ev_ic(const EventCtx *x, int line, char **tok, const int *col, int nt, Event *e) {
+    e->kind = 1;
+    for (int k = 2; k < nt; k++) {
+        if (e->nic == 8)
+            error_at(ev_pos(x, line, col[k]), "at most 8 initial conditions on one line: this is the 9th");
+        char *eq = strchr(tok[k], '=');
+        if (!eq)
+            error_at(ev_pos(x, line, col[k]), "expected v(node)=VALUE or x(node)=VALUE");
+        *eq = 0;
+        int id = find_ic_target(x->c, tok[k]);
+        if (id < 0)
+            error_at(ev_pos(x, line, col[k]), "unknown initial-condition target '%s'", tok[k]);
+        int vcol = col[k] + (int)(eq + 1 - tok[k]);
+        double v = ev_number(x, line, vcol, eq + 1);
+        if (!sane_level(v))
+            error_at(ev_pos(x, line, vcol), "a strike value must be at most %g in size, not '%s'", MAX_LEVEL, eq + 1);
+        e->ids[e->nic] = id;
+        e->vals[e->nic++] = v;
+    }
+}
+
+/* One line, comments already cut; returns false for a blank line. */
+static bool ev_line(const EventCtx *x, int line, char *text, Event *e) {
+    char *tok[20];
+    int col[20], nt = 0;
+    for (char *t = strtok(text, " \t\r"); t && nt < 20; t = strtok(NULL, " \t\r")) {
+        col[nt] = (int)(t - text) + 1;
+        tok[nt++] = t;
+    }
+    if (!nt)
+        return false;
+    double t;
+    const char *why;
+    if (!lex_number(tok[0], (int)strlen(tok[0]), &t, &why) || t < 0)
+        error_at(ev_pos(x, line, col[0]), "expected a time in seconds");
+    if (!(t <= x->tmax))
+        error_at(ev_pos(x, line, col[0]), "an event at %s s is past %s (%g s)", tok[0], x->why, x->tmax);
+    e->frame = lround(t * x->fs);
+    if (nt >= 2 && !strcmp(tok[1], "set"))
+        ev_set(x, line, tok, col, nt, e);
+    else if (nt >= 3 && !strcmp(tok[1], "ic"))
+        ev_ic(x, line, tok, col, nt, e);
+    else
+        error_at(ev_pos(x, line, nt >= 2 ? col[1] : col[0]), "expected 'set' or 'ic' after the time");
+    return true;
+}
+
+/* Reads and checks an events file against the circuit, before the voice
+ * is compiled; errors print FILE:LINE:COL, the line and a caret, and exit 1.
+ * Returns the events sorted by frame (arena). */
+static Event *read_events(const char *path, EventCtx *x, int *nev) {
     char *text = read_file(path, NULL);
     if (!text) {
         fprintf(stderr, "wdc: error: cannot read events file '%s'\n", path);
         exit(EXIT_USAGE);
     }
-    Event *ev = arena_alloc(sizeof(Event) * 1);
+    x->file = srcfile_new(path, text);
+    Event *ev = arena_alloc(sizeof(Event));
     int n = 0, cap = 1, line = 0;
-    for (char *l = text; l && *l; ) {
-        char *nl = strchr(l, '\n');
-        if (nl)
-            *nl = 0;
-        line++;
-        char *hash = strchr(l, '#');
+    for (const char *l = text; *l; line++) {
+        const char *nl = strchr(l, '\n');
+        size_t len = nl ? (size_t)(nl - l) : strlen(l);
+        char *copy = arena_strndup(l, len), *hash = strchr(copy, '#');
         if (hash)
             *hash = 0;
-        char *tok[20];
-        int nt = 0;
-        for (char *t = strtok(l, " \t\r"); t && nt < 20; t = strtok(NULL, " \t\r"))
-            tok[nt++] = t;
-        if (nt) {
-            if (n == cap) {
-                Event *e2 = arena_alloc(sizeof(Event) * (size_t)cap * 2);
-                memcpy(e2, ev, sizeof(Event) * (size_t)n);
-                ev = e2;
-                cap *= 2;
-            }
-            Event *e = &ev[n];
-            double t;
-            const char *why;
-            int col = (int)(tok[0] - l) + 1;
-            if (!lex_number(tok[0], (int)strlen(tok[0]), &t, &why) || t < 0)
-                event_error(path, line, col, "expected a time in seconds");
-            e->frame = lround(t * fs);
-            e->order = n;
-            if (nt >= 2 && !strcmp(tok[1], "set")) {
-                if (nt != 4)
-                    event_error(path, line, (int)(tok[1] - l) + 1, "expected: TIME set PARAM VALUE");
-                e->kind = 0;
-                e->param = -1;
-                for (int i = 0; i < cls->n_params; i++)
-                    if (!strcmp(cls->params[i].name, tok[2]))
-                        e->param = i;
-                if (e->param < 0)
-                    event_error(path, line, (int)(tok[2] - l) + 1, format("unknown param '%s'", tok[2]));
-                if (!lex_number(tok[3], (int)strlen(tok[3]), &e->value, &why))
-                    event_error(path, line, (int)(tok[3] - l) + 1, "expected a number");
-            } else if (nt >= 3 && !strcmp(tok[1], "ic")) {
-                e->kind = 1;
-                for (int k = 2; k < nt; k++) {
-                    char *eq = strchr(tok[k], '=');
-                    int col2 = (int)(tok[k] - l) + 1;
-                    if (!eq || e->nic == 8)
-                        event_error(path, line, col2, "expected v(node)=VALUE or x(node)=VALUE");
-                    *eq = 0;
-                    int id = -1;
-                    for (int i = 0; i < cls->n_ic_targets; i++)
-                        if (!strcmp(cls->ic_targets[i].name, tok[k]))
-                            id = i;
-                    if (id < 0)
-                        event_error(path, line, col2, format("unknown initial-condition target '%s'", tok[k]));
-                    if (!lex_number(eq + 1, (int)strlen(eq + 1), &e->vals[e->nic], &why))
-                        event_error(path, line, (int)(eq + 1 - l) + 1, "expected a number");
-                    e->ids[e->nic++] = id;
-                }
-            } else {
-                event_error(path, line, nt >= 2 ? (int)(tok[1] - l) + 1 : col, "expected 'set' or 'ic' after the time");
-            }
-            n++;
+        if (n == cap) {
+            Event *e2 = arena_alloc(sizeof(Event) * (size_t)cap * 2);
+            memcpy(e2, ev, sizeof(Event) * (size_t)n);
+            ev = e2;
+            cap *= 2;
         }
-        l = nl ? nl + 1 : NULL;
+        memset(&ev[n], 0, sizeof(Event));
+        ev[n].order = n;
+        if (ev_line(x, line + 1, copy, &ev[n]))
+            n++;
+        l = nl ? nl + 1 : l + len;
     }
     qsort(ev, (size_t)n, sizeof(Event), cmp_event);
     *nev = n;
@@ -283,107 +402,175 @@ static Event *read_events(const char *path, const wdv_class *cls, double fs, int
 
 /* ---- render ---- */
 
-static int render(const Opts *o, const Circuit *c, const char *cfile, double fs) {
-    char tmpl[] = "/tmp/wdc.XXXXXX";
-    if (!mkdtemp(tmpl)) {
-        fprintf(stderr, "wdc: error: cannot make a temporary directory: %s\n", strerror(errno));
-        return EXIT_TOOL;
-    }
-    const char *so = format("%s/%s.so", tmpl, c->name);
-    wdrt_voice_lib lib;
-    wdrt_result r = wdrt_voice_compile(cfile, so, NULL, "-O2");
-    if (r == WDRT_OK)
-        r = wdrt_voice_open(so, c->name, &lib);
-    unlink(so);
-    rmdir(tmpl);
-    if (r != WDRT_OK) {
-        fprintf(stderr, "wdc: error: %s: %s\n", cfile, wdrt_result_str(r));
-        return EXIT_TOOL;
-    }
-    const wdv_class *cls = lib.cls;
+/* Everything a render needs that the user gave, checked and allocated
+ * before the voice is compiled. */
+typedef struct Render {
+    long n;           /* frames */
+    Signal in[16];
+    Event *ev;
+    int nev;
+    double *chan;     /* n frames of each output, channel after channel */
+    double *outbuf;   /* the same, interleaved for the WAV */
+} Render;
+
+static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *rd) {
     if (c->nouts == 0) {
         fprintf(stderr, "%s: error: nothing to render: the netlist has no .output\n", c->path);
-        return EXIT_NETLIST;
+        exit(EXIT_NETLIST);
     }
     if (o->ninputs > c->ninputs)
         usage_error("more --input options than the netlist's %s", format("%d inputs", c->ninputs));
+    if (c->nouts > 64 || c->ninputs > 64) {
+        fprintf(stderr, "wdc: error: too many channels to render (64 at most)\n");
+        exit(EXIT_TOOL);
+    }
     long n = o->seconds > 0 ? lround(o->seconds * fs) : -1;
-    Signal in[16] = {{0}};
+    double tmax = o->seconds > 0 ? o->seconds : MAX_SECONDS;
+    const char *why = o->seconds > 0 ? "the end of the render" : "a day, the longest render";
     for (int k = 0; k < o->ninputs; k++)
         if (is_wav(o->inputs[k])) {
-            int nch;
-            double wfs;
-            double *frames;
-            long nf;
-            if (wdrt_wav_read(o->inputs[k], &nch, &wfs, &frames, &nf) != WDRT_OK) {
-                fprintf(stderr, "wdc: error: cannot read input '%s'\n", o->inputs[k]);
-                return EXIT_USAGE;
+            rd->in[k] = read_wav_input(o->inputs[k], fs);
+            if (n < 0) {
+                n = rd->in[k].n;
+                tmax = (double)n / fs;
+                why = format("the end of the render, which '%s' sets", o->inputs[k]);
             }
-            if (fabs(wfs - fs) > 0.5)
-                usage_error("input file rate differs from the render rate (%s)", format("%g Hz vs %g Hz", wfs, fs));
-            in[k].data = malloc(sizeof(double) * (size_t)(nf + 1));
-            for (long i = 0; i < nf; i++)
-                in[k].data[i] = frames[i * nch];
-            in[k].n = nf;
-            free(frames);
-            if (n < 0)
-                n = nf;
         }
-    int nev = 0;
-    Event *ev = o->events ? read_events(o->events, cls, fs, &nev) : NULL;
-    if (n < 0 && nev) /* the last event and three seconds of what follows */
-        n = ev[nev - 1].frame + lround(3 * fs);
+    if (o->events) {
+        EventCtx x = {NULL, c, fs, tmax, why};
+        rd->ev = read_events(o->events, &x, &rd->nev);
+    }
+    if (n < 0 && rd->nev) /* the last event and three seconds of what follows */
+        n = rd->ev[rd->nev - 1].frame + lround(3 * fs);
     if (n < 0)
         n = lround(fs);
     for (int k = 0; k < o->ninputs; k++) {
+        Signal *s = &rd->in[k];
         if (!is_wav(o->inputs[k])) {
-            in[k] = make_signal(o->inputs[k], fs, n, c->ninputs);
-        } else if (in[k].n < n) { /* pad a short file with silence */
-            double *d = calloc((size_t)n + 1, sizeof(double));
-            memcpy(d, in[k].data, sizeof(double) * (size_t)in[k].n);
-            free(in[k].data);
-            in[k].data = d;
-            in[k].n = n;
+            *s = make_signal(o->inputs[k], fs, n);
+        } else if (s->n < n) { /* pad a short file with silence */
+            double *d = checked_calloc((size_t)n + 1, sizeof(double), format("input '%s'", o->inputs[k]));
+            memcpy(d, s->data, sizeof(double) * (size_t)s->n);
+            free(s->data);
+            s->data = d;
+            s->n = n;
         }
     }
-    double *outbuf = calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double));
+    rd->n = n;
+    rd->chan = checked_calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double), "the output");
+    rd->outbuf = checked_calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double), "the output");
+}
+
+/* The temporary folder a voice is emitted and compiled in, removed at
+ * exit: each run has its own, so renders at once never share a file. */
+static char *build_dir;
+static const char *build_name;
+
+static void remove_build_dir(void) {
+    if (!build_dir)
+        return;
+    const char *files[] = {"%s/%s.c", "%s/%s.h", "%s/%s.so"};
+    for (int k = 0; k < 3; k++)
+        unlink(format(files[k], build_dir, build_name));
+    unlink(format("%s/wdvoice.h", build_dir));
+    rmdir(build_dir);
+    build_dir = NULL;
+}
+
+static int make_build_dir(const char *name) {
+    const char *tmp = getenv("TMPDIR");
+    char *d = format("%s/wdc.XXXXXX", tmp && *tmp ? tmp : "/tmp");
+    if (!mkdtemp(d)) {
+        fprintf(stderr, "wdc: error: cannot make a temporary folder '%s': %s\n", d, strerror(errno));
+        return -1;
+    }
+    build_dir = d;
+    build_name = name;
+    atexit(remove_build_dir);
+    return 0;
+}
+
+/* Copies FILE of the build folder into DIR through a temporary there and
+ * a rename, so a reader of DIR sees the old file or the new one whole. */
+static int install(const char *dir, const char *file) {
+    size_t len;
+    char *text = read_file(format("%s/%s", build_dir, file), &len);
+    char *tmp = format("%s/.%s.XXXXXX", dir, file);
+    int fd = text ? mkstemp(tmp) : -1;
+    if (fd < 0)
+        return -1;
+    FILE *f = fdopen(fd, "w");
+    bool ok = f && fchmod(fd, 0644) == 0 && fwrite(text, 1, len, f) == len;
+    ok = (f ? fclose(f) == 0 : (close(fd), false)) && ok;
+    if (!ok || rename(tmp, format("%s/%s", dir, file)) != 0) {
+        unlink(tmp);
+        return -1;
+    }
+    return 0;
+}
+
+static int install_voice(const char *dir, const char *name) {
+    if (mkdir_p(dir) != 0 || install(dir, format("%s.c", name)) || install(dir, format("%s.h", name)) ||
+        install(dir, "wdvoice.h")) {
+        fprintf(stderr, "wdc: error: cannot write the voice to '%s': %s\n", dir, strerror(errno));
+        return EXIT_USAGE;
+    }
+    return 0;
+}
+
+/* Index of the first non-finite sample of n, or -1. */
+static long first_nonfinite(const double *x, long n) {
+    for (long i = 0; i < n; i++)
+        if (!isfinite(x[i]))
+            return i;
+    return -1;
+}
+
+/* Runs the voice over the render's frames, events applied at their frame;
+ * returns 0, or EXIT_TOOL once an output goes non-finite. */
+static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, void *st, double fs, Render *rd) {
     double *ptr_o[64];
     const double *ptr_i[64];
-    void *st = NULL;
-    if (posix_memalign(&st, 64, (cls->state_size + 63) / 64 * 64) != 0)
-        st = NULL;
-    if (!outbuf || !st || c->nouts > 64 || c->ninputs > 64) {
-        fprintf(stderr, "wdc: error: out of memory or too many channels\n");
-        return EXIT_TOOL;
-    }
-    double *chan = calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double));
-    cls->init(st, fs);
-    long pos = 0;
+    long n = rd->n, pos = 0;
     int ei = 0;
+    cls->init(st, fs);
     while (pos < n) {
-        while (ei < nev && ev[ei].frame <= pos) {
-            if (ev[ei].kind == 0)
-                cls->set_param(st, ev[ei].param, ev[ei].value);
-            else if (cls->set_ic(st, ev[ei].nic, ev[ei].ids, ev[ei].vals) != 0)
+        for (; ei < rd->nev && rd->ev[ei].frame <= pos; ei++) {
+            const Event *e = &rd->ev[ei];
+            if (e->kind == 0)
+                cls->set_param(st, e->param, e->value);
+            else if (cls->set_ic(st, e->nic, e->ids, e->vals) != 0)
                 fprintf(stderr, "%s: warning: initial conditions at %.6g s cannot all hold\n", o->events,
                         (double)pos / fs);
-            ei++;
         }
-        long end = ei < nev && ev[ei].frame < n ? ev[ei].frame : n;
+        long end = ei < rd->nev && rd->ev[ei].frame < n ? rd->ev[ei].frame : n;
         if (end - pos > 64)
             end = pos + 64;
         for (int k = 0; k < c->ninputs; k++)
-            ptr_i[k] = k < o->ninputs ? in[k].data + pos : NULL;
+            ptr_i[k] = k < o->ninputs ? rd->in[k].data + pos : NULL;
         for (int k = 0; k < c->nouts; k++)
-            ptr_o[k] = chan + (size_t)k * (size_t)n + (size_t)pos;
+            ptr_o[k] = rd->chan + (size_t)k * (size_t)n + (size_t)pos;
         wdrt_render(cls, st, ptr_i, ptr_o, end - pos, 64);
+        for (int k = 0; k < c->nouts; k++) {
+            long i = first_nonfinite(ptr_o[k], end - pos);
+            if (i >= 0) {
+                fprintf(stderr, "wdc: error: output '%s' went non-finite at %.6g s (frame %ld): the voice "
+                        "overflowed; nothing written\n", c->outs[k].name, (double)(pos + i) / fs, pos + i);
+                return EXIT_TOOL;
+            }
+        }
         pos = end;
     }
+    return 0;
+}
+
+static int render_write(const Opts *o, const Circuit *c, double fs, const Render *rd) {
+    long n = rd->n;
     for (long i = 0; i < n; i++)
         for (int k = 0; k < c->nouts; k++)
-            outbuf[i * c->nouts + k] = chan[(size_t)k * (size_t)n + (size_t)i];
+            rd->outbuf[i * c->nouts + k] = rd->chan[(size_t)k * (size_t)n + (size_t)i];
     int status = 0;
-    if (wdrt_wav_write(o->render, c->nouts, fs, outbuf, n) != WDRT_OK) {
+    if (wdrt_wav_write(o->render, c->nouts, fs, rd->outbuf, n) != WDRT_OK) {
         fprintf(stderr, "wdc: error: cannot write '%s'\n", o->render);
         status = EXIT_USAGE;
     }
@@ -391,22 +578,77 @@ static int render(const Opts *o, const Circuit *c, const char *cfile, double fs)
         FILE *f = fopen(o->csv, "w");
         if (!f) {
             fprintf(stderr, "wdc: error: cannot write '%s'\n", o->csv);
+            return EXIT_USAGE;
+        }
+        for (long i = 0; i < n; i++)
+            for (int k = 0; k < c->nouts; k++)
+                fprintf(f, "%.17g%c", rd->outbuf[i * c->nouts + k], k + 1 < c->nouts ? ',' : '\n');
+        if (fclose(f) != 0) {
+            fprintf(stderr, "wdc: error: cannot write '%s'\n", o->csv);
             status = EXIT_USAGE;
-        } else {
-            for (long i = 0; i < n; i++)
-                for (int k = 0; k < c->nouts; k++)
-                    fprintf(f, "%.17g%c", outbuf[i * c->nouts + k], k + 1 < c->nouts ? ',' : '\n');
-            if (fclose(f) != 0)
-                status = EXIT_USAGE;
         }
     }
+    return status;
+}
+
+/* Compiles the voice emitted in the build folder, loads it and renders. */
+static int render(const Opts *o, const Circuit *c, double fs, Render *rd) {
+    const char *cfile = format("%s/%s.c", build_dir, c->name), *so = format("%s/%s.so", build_dir, c->name);
+    wdrt_voice_lib lib;
+    wdrt_result r = wdrt_voice_compile(cfile, so, NULL, "-O2");
+    if (r == WDRT_OK)
+        r = wdrt_voice_open(so, c->name, &lib);
+    if (r != WDRT_OK) {
+        fprintf(stderr, "wdc: error: %s: %s\n", cfile, wdrt_result_str(r));
+        return EXIT_TOOL;
+    }
+    const wdv_class *cls = lib.cls;
+    if (cls->n_params != c->nparams || cls->n_ic_targets != 2 * (c->nnodes - 1) || cls->n_outputs != c->nouts)
+        die("the compiled voice does not match its circuit");
+    void *st = NULL;
+    if (posix_memalign(&st, 64, (cls->state_size + 63) / 64 * 64) != 0) {
+        fprintf(stderr, "wdc: error: out of memory for the voice's state (%zu bytes)\n", cls->state_size);
+        wdrt_voice_close(&lib);
+        return EXIT_TOOL;
+    }
+    int status = render_run(o, c, cls, st, fs, rd);
+    if (status == 0)
+        status = render_write(o, c, fs, rd);
     free(st);
-    free(chan);
-    free(outbuf);
-    for (int k = 0; k < o->ninputs; k++)
-        free(in[k].data);
     wdrt_voice_close(&lib);
     return status;
+}
+
+/* wdf_build and scatter_check, netlist errors unwinding to here: NULL. */
+static Wdf *structure(Circuit *c, double fs) {
+    jmp_buf jb;
+    diag.jmp = &jb;
+    if (setjmp(jb)) {
+        diag.jmp = NULL;
+        return NULL;
+    }
+    Wdf *w = wdf_build(c, fs);
+    scatter_check(w, 1e-9);
+    diag.jmp = NULL;
+    return w;
+}
+
+/* The voice as C in eo->outdir, or (lv2) an LV2 bundle in lv2; returns
+ * the exit status. */
+static int emit(Wdf *w, const EmitOpts *eo, const char *lv2) {
+    jmp_buf jb;
+    diag.jmp = &jb;
+    if (setjmp(jb)) {
+        diag.jmp = NULL;
+        return EXIT_NETLIST;
+    }
+    int r = lv2 ? lv2_bundle(w, eo, lv2) : emit_voice(w, eo);
+    diag.jmp = NULL;
+    if (lv2)
+        return r == 0 ? 0 : r == LV2_ENETLIST ? EXIT_NETLIST : r == LV2_EIO ? EXIT_USAGE : EXIT_TOOL;
+    if (r != 0)
+        fprintf(stderr, "wdc: error: cannot write the voice to '%s': %s\n", eo->outdir, strerror(errno));
+    return r == 0 ? 0 : EXIT_TOOL;
 }
 
 int main(int argc, char **argv) {
@@ -417,13 +659,12 @@ int main(int argc, char **argv) {
     if (o.dump_elab)
         circuit_dump(c, stdout);
     double fs = o.rate > 0 ? o.rate : c->rate;
-    jmp_buf jb;
-    diag.jmp = &jb;
-    if (setjmp(jb))
+    Render rd = {0};
+    if (o.render) /* what the user gave is checked before any compiling */
+        render_prepare(&o, c, fs, &rd);
+    Wdf *w = structure(c, fs);
+    if (!w)
         return EXIT_NETLIST;
-    Wdf *w = wdf_build(c, fs);
-    scatter_check(w, 1e-9);
-    diag.jmp = NULL;
     if (o.dump_wdf)
         wdf_dump(w, stdout);
     if (o.tableau)
@@ -441,20 +682,17 @@ int main(int argc, char **argv) {
         return 0;
     EmitOpts eo = {.single = o.single, .outdir = o.outdir, .solver = o.solver, .table = o.table, .tol = o.tol,
                    .maxit = o.maxit};
-    if (o.lv2) {
-        diag.jmp = &jb;
-        int r = lv2_bundle(w, &eo, o.lv2);
-        diag.jmp = NULL;
-        return r == 0 ? 0 : r == LV2_ENETLIST ? EXIT_NETLIST : r == LV2_EIO ? EXIT_USAGE : EXIT_TOOL;
-    }
-    diag.jmp = &jb;
-    int emitted = mkdir_p(o.outdir) == 0 ? emit_voice(w, &eo) : -1;
-    diag.jmp = NULL;
-    if (emitted != 0) {
-        fprintf(stderr, "wdc: error: cannot write the voice to '%s': %s\n", o.outdir, strerror(errno));
-        return EXIT_USAGE;
-    }
-    if (o.render)
-        return render(&o, c, format("%s/%s.c", o.outdir, c->name), fs);
-    return 0;
+    if (o.lv2)
+        return emit(w, &eo, o.lv2);
+    /* the voice is emitted in a folder of this run's own; -o DIR (or no
+     * --render) then gets each file renamed into place */
+    if (make_build_dir(c->name) != 0)
+        return EXIT_TOOL;
+    eo.outdir = build_dir;
+    int status = emit(w, &eo, NULL);
+    if (status == 0 && (!o.render || o.has_outdir))
+        status = install_voice(o.outdir, c->name);
+    if (status == 0 && o.render)
+        status = render(&o, c, fs, &rd);
+    return status;
 }

@@ -35,31 +35,57 @@ char *format(const char *fmt, ...) {
     return p;
 }
 
+/* The largest file the compiler reads.  Netlists are hand-written text:
+ * the largest in the repository is a few kilobytes, and a bound keeps a
+ * mistaken argument (a device, a log, a sound file) from eating memory. */
+#define MAX_FILE_BYTES (16u << 20)
+
+/* Reads a whole regular file of at most MAX_FILE_BYTES into the arena,
+ * NUL-terminated.  Returns NULL with errno set if it cannot: EINVAL for
+ * anything but a regular file (a device such as /dev/zero, a FIFO, a
+ * directory: none has an end worth waiting for), EFBIG for a larger file,
+ * or the error of stat, fopen or fread. */
 char *read_file(const char *path, size_t *len) {
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return NULL;
+    if (!S_ISREG(st.st_mode)) { /* checked before fopen, which blocks on a FIFO */
+        errno = EINVAL;
+        return NULL;
+    }
+    if (st.st_size > (off_t)MAX_FILE_BYTES) {
+        errno = EFBIG;
+        return NULL;
+    }
     FILE *f = fopen(path, "rb");
     if (!f)
         return NULL;
-    size_t cap = 4096, n = 0;
+    /* st_size is a hint (files under /proc report 0): read to the end,
+     * one byte past the limit at most, so a file that grew shows */
+    size_t cap = (size_t)st.st_size + 2, n = 0;
     char *buf = malloc(cap);
-    for (;;) {
+    while (buf && n <= MAX_FILE_BYTES) {
         if (n + 1 >= cap) {
-            cap *= 2;
-            buf = realloc(buf, cap);
-            if (!buf)
+            cap = 2 * cap < MAX_FILE_BYTES + 2 ? 2 * cap : MAX_FILE_BYTES + 2;
+            char *b = realloc(buf, cap);
+            if (!b)
                 die("out of memory reading %s", path);
+            buf = b;
         }
         size_t k = fread(buf + n, 1, cap - n - 1, f);
         if (k == 0)
             break;
         n += k;
     }
+    if (!buf)
+        die("out of memory reading %s", path);
     bool bad = ferror(f);
     fclose(f);
-    if (bad) {
+    if (bad || n > MAX_FILE_BYTES) {
         free(buf);
+        errno = bad ? EIO : EFBIG;
         return NULL;
     }
-    buf[n] = '\0';
     char *p = arena_strndup(buf, n);
     free(buf);
     if (len)
