@@ -155,7 +155,7 @@
 #define SURF_FS_MIN 8000.0      /* Hz */
 #define SURF_FS_MAX 768000.0    /* Hz */
 #define SURF_DIRECT (-1)        /* surf_output's channel of the direct sound */
-#define SURF_GEN_COST 5.0       /* a generator's cost per sample, in modes (measured: ~15 vs ~3 ns) */
+#define SURF_GEN_COST 7.0       /* a generator's cost per sample, in modes (measured by bench/surfbench: ~12 vs ~1.7 ns) */
 #define SURF_POOL_FULL WDRT_OUT_OF_MEMORY /* a pool has no free slot */
 
 typedef struct surf_world surf_world; /* opaque */
