@@ -55,7 +55,7 @@ static void first_line(const char *cmd, char *buf, size_t cap) {
     pclose(p);
 }
 
-static void cpu_model(char *buf, size_t cap) {
+void bench_cpu_model(char *buf, size_t cap) {
     snprintf(buf, cap, "?");
     FILE *f = fopen("/proc/cpuinfo", "r");
     if (!f)
@@ -84,7 +84,7 @@ void bench_print_setup(const char *cflags) {
     char version[256], cpu[256], cmd[512];
     snprintf(cmd, sizeof cmd, "%s --version 2>/dev/null", cc);
     first_line(cmd, version, sizeof version);
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("compiler: %s (%s)\n", cc, version);
     printf("flags:    -std=c99 -shared -fPIC %s ... -lm\n", cflags);
     printf("cpu:      %s\n\n", cpu);

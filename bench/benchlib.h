@@ -22,6 +22,8 @@ double bench_measure(void (*render)(void *ctx, long nblocks), void *ctx, int blo
  * first --version line, the flags `cflags`, and the CPU's model name,
  * then an empty line. */
 void bench_print_setup(const char *cflags);
+/* The CPU's model name from /proc/cpuinfo into buf, or "?". */
+void bench_cpu_model(char *buf, size_t cap);
 
 /* The netlist's file name without its directory and .wdn. */
 void bench_label(const char *path, char *label, size_t cap);

@@ -607,24 +607,6 @@ static void units(unit_result *res) {
 
 /* ---- main ---- */
 
-static void cpu_model(char *buf, size_t cap) {
-    snprintf(buf, cap, "?");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f))
-        if (!strncmp(line, "model name", 10)) {
-            const char *c = strchr(line, ':');
-            if (c) {
-                c += 1 + strspn(c + 1, " \t");
-                snprintf(buf, cap, "%.*s", (int)strcspn(c, "\n"), c);
-            }
-            break;
-        }
-    fclose(f);
-}
-
 int main(int argc, char **argv) {
     int only = 0;
     if (argc > 2 || (argc == 2 && !((only = atoi(argv[1])) >= 1 && only <= 4))) {
@@ -633,7 +615,7 @@ int main(int argc, char **argv) {
     }
     double t_start = bench_now();
     char cpu[256], fig[32], what[160];
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("wdrt bodies benchmark: %.0f Hz, mono, process calls of %d frames (the engine's grid block and the\n"
            "world's block); bodies of %d modes; wall time of the whole loop (events, process, a scan of the\n"
            "output), best of %d runs of >= %.2g s after %.2g s untimed, the cases of a section taking turns;\n"

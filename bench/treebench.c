@@ -750,24 +750,6 @@ static void cell(char *buf, size_t cap, const char *fmt, double v) {
         snprintf(buf, cap, fmt, v);
 }
 
-static void cpu_model(char *buf, size_t cap) {
-    snprintf(buf, cap, "?");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f))
-        if (!strncmp(line, "model name", 10)) {
-            const char *c = strchr(line, ':');
-            if (c) {
-                c += 1 + strspn(c + 1, " \t");
-                snprintf(buf, cap, "%.*s", (int)strcspn(c, "\n"), c);
-            }
-            break;
-        }
-    fclose(f);
-}
-
 /* Compares and times the evaluators of tree t, with hand C of kind
  * hand (H_*) and modes; 0, or -1 if it failed. */
 static int bench_tree(const tt_tree *t, int hand_kind, int modes, result *res) {
@@ -881,7 +863,7 @@ int main(int argc, char **argv) {
         fprintf(stderr, "treebench: %s\n", err);
         return 1;
     }
-    cpu_model(cpu, sizeof cpu);
+    bench_cpu_model(cpu, sizeof cpu);
     printf("timbre tree benchmark: %.0f Hz, one tree at a time restarted every %.0f s; the compiled program\n"
            "(a tt_class state, process in blocks of %d), Hahn et al.'s per-sample post-order walk of the\n"
            "tree, and hand-written C (sin, exp, pow in one loop over samples and modes); best of %d runs of\n"

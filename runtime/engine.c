@@ -1401,6 +1401,23 @@ static void compact(wdrt_engine *e) {
 }
 
 /* Wakes standing voices whose bound input is not silent in [0, nb). */
+/* Wakes instance k (a sleeper starts at frame `start` of the block), or
+ * turns back its fade into sleep. */
+static void wake(wdrt_engine *e, int k, int start) {
+    inst *v = &e->inst[k];
+    if (v->mode == M_ASLEEP) {
+        e->s.wakes++;
+        v->mode = M_AWAKE;
+        v->start = start;
+        v->age = GRACE_BLOCKS;
+        v->fade.v = 1, v->fade.left = 0;
+        activate(e, k);
+    } else if (v->mode == M_AWAKE && v->after == A_SLEEP) {
+        v->after = A_NONE;
+        ramp_to(&v->fade, 1, e->B);
+    }
+}
+
 static void wake_inputs(wdrt_engine *e, int callpos, int nb) {
     for (int i = 0; i < e->ninputs; i++) {
         int k = e->inputs[i];
@@ -1422,16 +1439,7 @@ static void wake_inputs(wdrt_engine *e, int callpos, int nb) {
             v->vdec = 1;
             continue;
         }
-        if (v->mode == M_ASLEEP) {
-            e->s.wakes++;
-            v->mode = M_AWAKE;
-            v->start = first;
-            v->age = GRACE_BLOCKS;
-            activate(e, k);
-        } else if (v->after == A_SLEEP) {
-            v->after = A_NONE;
-            ramp_to(&v->fade, 1, e->B);
-        }
+        wake(e, k, first);
     }
 }
 
@@ -1997,19 +2005,8 @@ static void excite(wdrt_engine *e, uint64_t t0, int nb) {
         if (!e->pwake[p])
             continue;
         for (int k = e->pools[p].first; k < e->pools[p].first + e->pools[p].cfg.voices; k++) {
-            inst *v = &e->inst[k];
-            if (v->mode == M_ASLEEP) {
-                e->s.wakes++;
-                v->mode = M_AWAKE;
-                v->start = 0;
-                v->age = GRACE_BLOCKS;
-                v->fade.v = 1, v->fade.left = 0;
-                activate(e, k);
-            } else if (v->mode == M_AWAKE && v->after == A_SLEEP) {
-                v->after = A_NONE;
-                ramp_to(&v->fade, 1, e->B);
-            }
-            v->quiet = 0;
+            wake(e, k, 0);
+            e->inst[k].quiet = 0;
         }
     }
 }

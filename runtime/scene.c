@@ -382,15 +382,18 @@ static int f_budget(wdrt_scene *S, const sx *f) {
     return 0;
 }
 
-/* sleep = '(' 'sleep' ( 'on' | 'off' ) ')' */
-static int f_sleep(wdrt_scene *S, const sx *f) {
-    if (arity(S, f, 2, 2, "(sleep on|off)"))
+/* A form of a switch: (NAME on|off). */
+static int on_off(wdrt_scene *S, const sx *f, const char *usage, int *on) {
+    if (arity(S, f, 2, 2, usage))
         return -1;
     if (!sx_is(f->head->next, "on") && !sx_is(f->head->next, "off"))
         return ERR(f->head->next, "expected on or off");
-    S->sleep = sx_is(f->head->next, "on");
+    *on = sx_is(f->head->next, "on");
     return 0;
 }
+
+/* sleep = '(' 'sleep' ( 'on' | 'off' ) ')' */
+static int f_sleep(wdrt_scene *S, const sx *f) { return on_off(S, f, "(sleep on|off)", &S->sleep); }
 
 /* ---- space ---- */
 
@@ -498,14 +501,7 @@ static int f_distance(wdrt_scene *S, const sx *f) {
 }
 
 /* air = '(' 'air' ( 'on' | 'off' ) ')' */
-static int f_air(wdrt_scene *S, const sx *f) {
-    if (arity(S, f, 2, 2, "(air on|off)"))
-        return -1;
-    if (!sx_is(f->head->next, "on") && !sx_is(f->head->next, "off"))
-        return ERR(f->head->next, "expected on or off");
-    S->sp.air = sx_is(f->head->next, "on");
-    return 0;
-}
+static int f_air(wdrt_scene *S, const sx *f) { return on_off(S, f, "(air on|off)", &S->sp.air); }
 
 /* listener = '(' 'listener' [ position ] [ '(' 'facing' X Y Z ')' ] ')' */
 static int f_listener(wdrt_scene *S, const sx *f) {
@@ -1959,29 +1955,52 @@ static void velocity(const objref *o, double t, int dir, double v[3]) {
 
 /* The value of a motion binding at scene time t; J: the impulse of the
  * impact that plays the note (0 otherwise). */
-static double motion_at(const wdrt_scene *S, const sx *m, double t, double J) {
-    const sx *a = m->head->next;
+/* A motion binding with its objects found: what a drive evaluates every
+ * block without looking names up again. */
+enum { MO_SPEED, MO_DISTANCE, MO_TRAVEL, MO_IMPULSE, MO_X, MO_Y, MO_Z };
+typedef struct motion_ref {
+    int kind; /* MO_*, in the order of motions[] */
     objref A, B;
-    double p[3], q[3], v0[3], v1[3];
-    if (sx_is(m->head, "impulse"))
+} motion_ref;
+
+static motion_ref motion_resolve(const wdrt_scene *S, const sx *m) {
+    motion_ref r;
+    memset(&r, 0, sizeof r);
+    for (int i = 0; i < NMOTIONS; i++)
+        if (sx_is(m->head, motions[i]))
+            r.kind = i;
+    const sx *a = m->head->next;
+    if (a)
+        find_obj(S, a->text, &r.A);
+    if (a && a->next)
+        find_obj(S, a->next->text, &r.B);
+    return r;
+}
+
+static double motion_eval(const motion_ref *r, double t, double J) {
+    double p[3], q[3], v0[3], v1[3], z[3] = {0, 0, 0};
+    switch (r->kind) {
+    case MO_IMPULSE:
         return J;
-    find_obj(S, a->text, &A);
-    if (sx_is(m->head, "distance")) {
-        find_obj(S, a->next->text, &B);
-        obj_at(&A, t, p);
-        obj_at(&B, t, q);
+    case MO_DISTANCE:
+        obj_at(&r->A, t, p);
+        obj_at(&r->B, t, q);
         return dist3(p, q);
-    }
-    if (sx_is(m->head, "speed")) {
-        velocity(&A, t, 1, v1);
-        velocity(&A, t, -1, v0);
-        double z[3] = {0, 0, 0};
+    case MO_SPEED:
+        velocity(&r->A, t, 1, v1);
+        velocity(&r->A, t, -1, v0);
         return 0.5 * (dist3(v0, z) + dist3(v1, z));
+    case MO_TRAVEL:
+        return travel(&r->A, t);
+    default:
+        obj_at(&r->A, t, p);
+        return p[r->kind - MO_X];
     }
-    if (sx_is(m->head, "travel"))
-        return travel(&A, t);
-    obj_at(&A, t, p);
-    return p[sx_is(m->head, "x") ? 0 : sx_is(m->head, "y") ? 1 : 2];
+}
+
+static double motion_at(const wdrt_scene *S, const sx *m, double t, double J) {
+    motion_ref r = motion_resolve(S, m);
+    return motion_eval(&r, t, J);
 }
 
 /* The impulse of an impact: given, or the mass times the jump in the
@@ -2193,7 +2212,8 @@ typedef struct drive {
     int param;      /* DRIVE_GAIN, DRIVE_MOVE, DRIVE_LISTEN, or the param */
     uint64_t next;  /* the next grid frame it posts at */
     uint64_t end;   /* the frame after which it has posted its last value */
-    int motion;     /* curve is a motion binding */
+    int motion;     /* curve is a motion binding, its objects in mo */
+    motion_ref mo;
 } drive;
 
 typedef struct render {
@@ -2235,6 +2255,7 @@ static void add_motion_drive(render *R, const sx *m, wdrt_voice v, int param) {
     drive *d = &R->dr[R->ndr++];
     memset(d, 0, sizeof *d);
     d->curve = m, d->v = v, d->param = param, d->motion = 1;
+    d->mo = motion_resolve(R->S, m);
     double end = 0;
     for (const sx *o = m->head->next; o; o = o->next) {
         objref r;
@@ -2348,7 +2369,7 @@ static uint64_t post_due(render *R, uint64_t now, uint64_t until) {
                 r = d->param == DRIVE_MOVE ? wdrt_engine_move(R->e, d->next, d->v, p)
                                            : wdrt_engine_listen(R->e, d->next, p, NULL);
             } else {
-                double x = d->motion ? motion_at(R->S, d->curve, t, 0) : curve_at(d->curve, t);
+                double x = d->motion ? motion_eval(&d->mo, t, 0) : curve_at(d->curve, t);
                 r = d->param == DRIVE_GAIN ? wdrt_engine_gain(R->e, d->next, d->v, x)
                                            : wdrt_engine_set(R->e, d->next, d->v, d->param, x);
             }

@@ -111,8 +111,6 @@ enum { TT_CONST, TT_CONTROL, TT_AUDIO };
 enum {
     TT_F_STATE = 1,  /* keeps state from sample to sample: audio rate */
     TT_F_SPECIAL = 2,/* written in a form of its own (not (NAME ARG...)) */
-    TT_F_WAVE = 4,   /* a function of a phase: sine saw square triangle */
-    TT_F_MATH = 8,   /* a pure function of numbers, elementwise */
 };
 typedef struct tt_opinfo {
     const char *name;
@@ -245,7 +243,7 @@ typedef struct tt_class {
     const tt_prog *prog;
     double fs;
     wdv_param *params;
-    size_t layout[8];      /* private: offsets of the state's parts */
+    size_t layout[4];      /* private: offsets of the state's parts */
     size_t *stoff;         /* private: offsets of the instructions' states */
 } tt_class;
 

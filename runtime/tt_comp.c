@@ -105,7 +105,7 @@ static int emit(cc *c, int k, int rate, int w, const int *args, int na, const tt
     tt_ins *I = &P->ins[P->nins];
     memset(I, 0, sizeof *I);
     I->k = k, I->rate = rate, I->seg = c->seg, I->dst = dst, I->na = na, I->x = x, I->v = v;
-    I->stid = -1, I->data = -1, I->child = -1;
+    I->data = -1, I->child = -1;
     if (na > 8) {
         int *xa = realloc(P->xargs, sizeof(int) * ((size_t)P->nxargs + (size_t)na + 1));
         if (!xa) {
@@ -786,7 +786,6 @@ int tt_class_init(tt_class *c, const tt_prog *P, double fs, char *err, size_t er
     off = align16(off + sizeof(double) * P->nrdata);
     c->layout[L_SEGF] = off;
     off = align16(off + sizeof(int64_t) * (size_t)P->nseg);
-    c->layout[L_OPS] = off;
     for (int i = 0; i < P->nins; i++) {
         size_t n = tt_run_state_size(P, &P->ins[i], fs);
         c->stoff[i] = off;

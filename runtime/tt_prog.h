@@ -49,8 +49,6 @@ typedef struct tt_ins {
     double v, v2;   /* kernel constants */
     int child;      /* TT_ENERGETIC: the segment it replays */
     int data;       /* TT_SAMPLE: the sample; TT_VOICE: the voice */
-    size_t st;      /* bytes of state it keeps (fixed by the class at its rate) */
-    int stid;       /* its index into the class's state offsets, -1: none */
 } tt_ins;
 
 typedef struct tt_sample {
@@ -94,13 +92,11 @@ struct tt_prog {
 #define SINC_RES 512
 
 /* Layout of an instance's state (offsets in the class's layout[]). */
-enum { L_REGS, L_SEGF, L_OPS, L_SIZE };
+enum { L_REGS, L_SEGF, L_SIZE };
 
 typedef struct tt_state {
     const tt_class *C;      /* bound class, NULL: silence */
     double fs;
-    int reset_pending;
-    int pad;
     /* then: registers (doubles), segment frame counters (int64), op states */
 } tt_state;
 

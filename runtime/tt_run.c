@@ -695,9 +695,6 @@ static void k_delay(const ex *e, const tt_ins *I, void *S, int n) {
     s->w += n;
 }
 
-typedef struct bq {
-    double z1, z2;
-} bq;
 
 static void coefs(int op, double F, double Q, double fs, double c[5]) {
     double f = F / fs;
@@ -714,6 +711,23 @@ static void coefs(int op, double F, double Q, double fs, double c[5]) {
     c[0] = b0 / a0, c[1] = b1 / a0, c[2] = b2 / a0, c[3] = -2 * cw / a0, c[4] = (1 - al) / a0;
 }
 
+/* A filter's state, and the coefficients of the last block's params: a
+ * block whose params have not moved reuses them (no cos, sin or pow). */
+typedef struct bq {
+    double z1, z2;
+    double p1, p2;  /* the params the coefficients are for */
+    double c[5];
+    int ok;         /* c holds them */
+} bq;
+
+static const double *block_coefs(bq *s, int op, double F, double Q, double fs) {
+    if (!s->ok || F != s->p1 || Q != s->p2) {
+        coefs(op, F, Q, fs, s->c);
+        s->p1 = F, s->p2 = Q, s->ok = 1;
+    }
+    return s->c;
+}
+
 static void k_biquad(const ex *e, const tt_ins *I, void *S, int n) {
     int W = e->P->regs[I->dst].w, xes, xfs, fes, ffs, qes = 0, qfs = 0;
     bq *s = S;
@@ -726,30 +740,27 @@ static void k_biquad(const ex *e, const tt_ins *I, void *S, int n) {
         strides(e, I->a[2], &qes, &qfs);
     }
     for (int k = 0; k < W; k++) {
-        double c[5], z1 = s[k].z1, z2 = s[k].z2;
-        coefs(I->k, F[k * fes], Q[k * qes], e->fs, c);
+        double z1 = s[k].z1, z2 = s[k].z2;
         const double *xk = x + k * xes;
         double *dk = d + k * TB;
-        if (!ffs && !qfs && xfs) { /* coefficients that hold for the block: kept in registers */
+        if (!ffs && !qfs) { /* coefficients that hold for the block: kept in registers */
+            const double *c = block_coefs(&s[k], I->k, F[k * fes], Q[k * qes], e->fs);
             double b0 = c[0], b1 = c[1], b2 = c[2], a1 = c[3], a2 = c[4];
             for (int i = 0; i < n; i++) {
-                double xi = xk[i], y = b0 * xi + z1;
+                double xi = xk[i * xfs], y = b0 * xi + z1;
                 z1 = b1 * xi - a1 * y + z2;
                 z2 = b2 * xi - a2 * y;
                 dk[i] = y;
             }
-            if (!isfinite(z1) || !isfinite(z2))
-                z1 = z2 = 0;
-            s[k].z1 = z1, s[k].z2 = z2;
-            continue;
-        }
-        for (int i = 0; i < n; i++) {
-            if (i && (ffs || qfs))
+        } else { /* a moving frequency or Q: coefficients every sample */
+            double c[5];
+            for (int i = 0; i < n; i++) {
                 coefs(I->k, F[k * fes + i * ffs], Q[k * qes + i * qfs], e->fs, c);
-            double xi = x[k * xes + i * xfs], y = c[0] * xi + z1;
-            z1 = c[1] * xi - c[3] * y + z2;
-            z2 = c[2] * xi - c[4] * y;
-            d[k * TB + i] = y;
+                double xi = xk[i * xfs], y = c[0] * xi + z1;
+                z1 = c[1] * xi - c[3] * y + z2;
+                z2 = c[2] * xi - c[4] * y;
+                dk[i] = y;
+            }
         }
         if (!isfinite(z1) || !isfinite(z2))
             z1 = z2 = 0;
@@ -772,13 +783,17 @@ static void k_reson(const ex *e, const tt_ins *I, void *S, int n) {
     for (int k = 0; k < W; k++) {
         double wr = s[k].z1, wi = s[k].z2, c = 0, sn = 0, r = 0;
         for (int i = 0; i < n; i++) {
-            if (i == 0 || ffs || tfs) {
-                double w = 2 * M_PI * F[k * fes + i * ffs] / e->fs, T60 = T[k * tes + i * tfs];
-                r = T60 > 0 && isfinite(T60) ? pow(10, -3 / (T60 * e->fs)) : 0;
+            double Fi = F[k * fes + i * ffs], T60 = T[k * tes + i * tfs];
+            if (!s[k].ok || Fi != s[k].p1 || T60 != s[k].p2) { /* the pole, when its params move */
+                double w = 2 * M_PI * Fi / e->fs;
+                s[k].c[0] = T60 > 0 && isfinite(T60) ? pow(10, -3 / (T60 * e->fs)) : 0;
                 if (!isfinite(w))
                     w = 0;
-                c = cos(w), sn = sin(w);
+                s[k].c[1] = cos(w), s[k].c[2] = sin(w);
+                s[k].p1 = Fi, s[k].p2 = T60, s[k].ok = 1;
             }
+            if (i == 0 || ffs || tfs)
+                r = s[k].c[0], c = s[k].c[1], sn = s[k].c[2];
             double xi = x[k * xes + i * xfs];
             double nr = r * (c * wr - sn * wi) + xi;
             wi = r * (sn * wr + c * wi);

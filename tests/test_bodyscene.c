@@ -28,8 +28,7 @@ static char g_dir[64];
 
 static int setup(void **s) {
     (void)s;
-    strcpy(g_dir, "/tmp/wdrt-bodyscene.XXXXXX");
-    return mkdtemp(g_dir) ? 0 : -1;
+    return tl_temp_dir(g_dir, "wdrt-bodyscene");
 }
 
 static int teardown(void **s) {
@@ -39,13 +38,8 @@ static int teardown(void **s) {
 }
 
 static double *render(const char *text, long *n, wdrt_engine_stats *st) {
-    const char *path = tl_write_file(g_dir, "s.wds", text);
-    char err[2048] = "";
-    wdrt_scene *s = NULL;
-    wdrt_result r = wdrt_scene_load(path, &s, err, sizeof err);
-    if (r != WDRT_OK)
-        fprintf(stderr, "%s", err);
-    assert_int_equal(r, WDRT_OK);
+    wdrt_scene *s = tl_scene_load(g_dir, "s.wds", text);
+    assert_non_null(s);
     double *y = NULL, rate;
     int nch;
     assert_int_equal(wdrt_scene_render(s, NULL, &y, n, &nch, &rate, st), WDRT_OK);
@@ -54,13 +48,7 @@ static double *render(const char *text, long *n, wdrt_engine_stats *st) {
     return y;
 }
 
-static void load_error(const char *text, char *err, size_t len) {
-    const char *path = tl_write_file(g_dir, "e.wds", text);
-    wdrt_scene *s = NULL;
-    err[0] = 0;
-    if (wdrt_scene_load(path, &s, err, len) == WDRT_OK)
-        wdrt_scene_free(s);
-}
+static void load_error(const char *text, char *err, size_t len) { tl_scene_error(g_dir, "e.wds", text, err, len); }
 
 /* The same impact through a world of its own, frame by frame. */
 static void world_alone(double *y, long n, long at) {

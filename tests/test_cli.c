@@ -21,15 +21,13 @@ static char dir[64];
 
 static int setup(void **s) {
     (void)s;
-    strcpy(dir, "/tmp/wdc-cli.XXXXXX");
-    return mkdtemp(dir) ? 0 : -1;
+    return tl_temp_dir(dir, "wdc-cli");
 }
 
 static int teardown(void **s) {
     (void)s;
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
-    return system(cmd) == 0 ? 0 : -1;
+    tl_remove_dir(dir);
+    return 0;
 }
 
 /* Runs a shell command; returns its exit status. */

@@ -38,15 +38,13 @@ static char g_dir[64];
 
 static int setup(void **s) {
     (void)s;
-    strcpy(g_dir, "/tmp/wdrt-complex.XXXXXX");
-    return mkdtemp(g_dir) ? 0 : -1;
+    return tl_temp_dir(g_dir, "wdrt-complex");
 }
 
 static int teardown(void **s) {
     (void)s;
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", g_dir);
-    return system(cmd) == 0 ? 0 : -1;
+    tl_remove_dir(g_dir);
+    return 0;
 }
 
 static const char *write_file(const char *name, const char *text) { return tl_write_file(g_dir, name, text); }

@@ -30,15 +30,13 @@ static char g_dir[64];
 
 static int setup(void **s) {
     (void)s;
-    strcpy(g_dir, "/tmp/wdrt-evolve.XXXXXX");
-    return mkdtemp(g_dir) ? 0 : -1;
+    return tl_temp_dir(g_dir, "wdrt-evolve");
 }
 
 static int teardown(void **s) {
     (void)s;
-    char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", g_dir);
-    return system(cmd) == 0 ? 0 : -1;
+    tl_remove_dir(g_dir);
+    return 0;
 }
 
 /* g_dir/name, in a static buffer of its own (one per slot). */

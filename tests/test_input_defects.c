@@ -30,13 +30,13 @@ static char tmpdir[64];
 
 static int make_tmpdir(void **state) {
     (void)state;
-    strcpy(tmpdir, "/tmp/wdc-indef.XXXXXX");
-    return mkdtemp(tmpdir) ? 0 : -1;
+    return tl_temp_dir(tmpdir, "wdc-indef");
 }
 
 static int remove_tmpdir(void **state) {
     (void)state;
-    return tl_system(format("rm -rf '%s'", tmpdir)) == 0 ? 0 : -1;
+    tl_remove_dir(tmpdir);
+    return 0;
 }
 
 static const char *wdc_path(void) {

@@ -27,13 +27,13 @@ static int setup(void **s) {
     (void)s;
     if (!getcwd(root, sizeof root))
         return -1;
-    strcpy(dir, "/tmp/wdc-rdef.XXXXXX");
-    return mkdtemp(dir) ? 0 : -1;
+    return tl_temp_dir(dir, "wdc-rdef");
 }
 
 static int teardown(void **s) {
     (void)s;
-    return tl_system(format("rm -rf %s", dir)) == 0 ? 0 : -1;
+    tl_remove_dir(dir);
+    return 0;
 }
 
 /* Runs bin/wdc with args, stderr to DIR/err.txt; returns its exit status. */

@@ -34,8 +34,7 @@ static char g_dir[64];
 
 static int setup(void **s) {
     (void)s;
-    strcpy(g_dir, "/tmp/wdrt-treescene.XXXXXX");
-    return mkdtemp(g_dir) ? 0 : -1;
+    return tl_temp_dir(g_dir, "wdrt-treescene");
 }
 
 static int teardown(void **s) {
@@ -46,13 +45,8 @@ static int teardown(void **s) {
 
 /* Renders scene text; returns the mono frames (caller frees). */
 static double *render(const char *text, long *n) {
-    const char *path = tl_write_file(g_dir, "s.wds", text);
-    char err[2048] = "";
-    wdrt_scene *s = NULL;
-    wdrt_result r = wdrt_scene_load(path, &s, err, sizeof err);
-    if (r != WDRT_OK)
-        fprintf(stderr, "%s", err);
-    assert_int_equal(r, WDRT_OK);
+    wdrt_scene *s = tl_scene_load(g_dir, "s.wds", text);
+    assert_non_null(s);
     assert_int_equal(wdrt_scene_nvoices(s), 0); /* trees need no netlists */
     double *y = NULL, rate;
     int nch;
@@ -62,14 +56,7 @@ static double *render(const char *text, long *n) {
     return y;
 }
 
-/* The error loading scene text gives (empty when it loads). */
-static void load_error(const char *text, char *err, size_t len) {
-    const char *path = tl_write_file(g_dir, "e.wds", text);
-    wdrt_scene *s = NULL;
-    err[0] = 0;
-    if (wdrt_scene_load(path, &s, err, len) == WDRT_OK)
-        wdrt_scene_free(s);
-}
+static void load_error(const char *text, char *err, size_t len) { tl_scene_error(g_dir, "e.wds", text, err, len); }
 
 static void test_distance_follows_path(void **st) {
     (void)st;

@@ -4,6 +4,7 @@
 #include <cmocka.h>
 #include <complex.h>
 #include <dirent.h>
+#include <sys/stat.h>
 #include <errno.h>
 #include <glob.h>
 #include <math.h>
@@ -45,10 +46,38 @@ void tl_remove_dir(const char *dir) {
         if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
             continue;
         snprintf(path, sizeof path, "%s/%s", dir, de->d_name);
-        unlink(path);
+        struct stat st;
+        if (lstat(path, &st) == 0 && S_ISDIR(st.st_mode))
+            tl_remove_dir(path);
+        else
+            unlink(path);
     }
     closedir(d);
     rmdir(dir);
+}
+
+wdrt_scene *tl_scene_load(const char *dir, const char *name, const char *text) {
+    const char *path = tl_write_file(dir, name, text);
+    char err[4096] = "";
+    wdrt_scene *s = NULL;
+    if (wdrt_scene_load(path, &s, err, sizeof err) != WDRT_OK) {
+        fprintf(stderr, "%s", err);
+        return NULL;
+    }
+    return s;
+}
+
+void tl_scene_error(const char *dir, const char *name, const char *text, char *err, size_t len) {
+    const char *path = tl_write_file(dir, name, text);
+    wdrt_scene *s = NULL;
+    err[0] = 0;
+    if (wdrt_scene_load(path, &s, err, len) == WDRT_OK)
+        wdrt_scene_free(s);
+}
+
+int tl_temp_dir(char dir[64], const char *stem) {
+    snprintf(dir, 64, "/tmp/%.40s.XXXXXX", stem);
+    return mkdtemp(dir) ? 0 : -1;
 }
 
 /* Build directories not yet removed, so that a test that fails between

@@ -62,8 +62,17 @@ int tl_voice_load(tl_voice *v);
 /* The NAME of the one NAME.c in dir; returns 0, or -1 if there is not
  * exactly one. */
 int tl_voice_name(const char *dir, char *name, size_t cap);
-/* Removes the files of dir, then dir. */
+/* Removes what dir holds (folders within it too), then dir. */
 void tl_remove_dir(const char *dir);
+/* Makes a fresh folder /tmp/STEM.XXXXXX, its path into dir: 0, or -1. */
+int tl_temp_dir(char dir[64], const char *stem);
+
+/* Loads the scene text written to DIR/NAME: the scene, or NULL with its
+ * error printed on stderr. */
+wdrt_scene *tl_scene_load(const char *dir, const char *name, const char *text);
+/* The error loading the scene text written to DIR/NAME gives, into err
+ * (empty when it loads). */
+void tl_scene_error(const char *dir, const char *name, const char *text, char *err, size_t len);
 
 /* Writes text to DIR/NAME and returns that path (a static buffer, valid
  * until the next call); fails the current test if it cannot. */
