@@ -36,6 +36,8 @@ build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/em
 		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_law=templates/nl_law.c.tmpl tmpl_nl_passive=templates/nl_passive.c.tmpl \
 		tmpl_nl_memory=templates/nl_memory.c.tmpl tmpl_nl_memcap=templates/nl_memcap.c.tmpl tmpl_waveguide=templates/waveguide.c.tmpl \
 		tmpl_waveguide_state=templates/waveguide_state.c.tmpl \
+		tmpl_lu=templates/lu.c.tmpl tmpl_retune=templates/retune.c.tmpl tmpl_root=templates/root.c.tmpl \
+		tmpl_nl_adapt=templates/nl_adapt.c.tmpl tmpl_settle=templates/settle.c.tmpl tmpl_params=templates/params.c.tmpl \
 		tmpl_lv2_c=templates/lv2.c.tmpl tmpl_lv2_manifest=templates/lv2_manifest.ttl.tmpl \
 		tmpl_lv2_plugin=templates/lv2_plugin.ttl.tmpl
 
@@ -108,7 +110,7 @@ build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/bodies.
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench build/bench/paramblock
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
@@ -116,11 +118,16 @@ bench: deps
 	build/bench/spacebench
 	build/bench/treebench
 	build/bench/surfbench
+	build/bench/paramblock $(NETLISTS)
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+# What a param change costs the audio thread: inline, and with prepare off it.
+build/bench/paramblock: build/bench/paramblock.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 # The engine's economy: sleeping voices, a 1000-voice scene, an 88-key piano.
@@ -147,6 +154,42 @@ build/bench/stkshim.o: bench/stkshim.cpp
 
 build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lstk -lstdc++
+
+# Speed against accuracy, our voices beside Faust's wdmodels.lib, STK and
+# C written by hand, measured in one run (build/bench/chart) and drawn by
+# gnuplot: out/chart.csv, out/chart.png, out/chart.svg.  The peers' C is
+# compiled with the voices' flags; Faust's is made here from bench/faust/.
+PEER_CFLAGS = -std=c99 -fPIC -O2
+FAUST_OBJS  = build/bench/faust/rc_lowpass_d.o build/bench/faust/rc_lowpass_f.o \
+	build/bench/faust/diode_clipper_d.o build/bench/faust/diode_clipper_f.o
+
+chart: deps
+	sh scripts/install-chart-deps.sh
+	$(MAKE) all build/bench/chart
+	@mkdir -p out
+	build/bench/chart -o out/chart.csv
+	gnuplot -e "csv='out/chart.csv'; png='out/chart.png'; svg='out/chart.svg'" bench/chart.gp
+	@echo "wrote out/chart.png and out/chart.svg"
+
+build/bench/faust/%_d.c: bench/faust/%.dsp
+	@mkdir -p $(dir $@)
+	faust -lang c -double -cn $*_d $< -o $@
+
+build/bench/faust/%_f.c: bench/faust/%.dsp
+	@mkdir -p $(dir $@)
+	faust -lang c -cn $*_f $< -o $@
+
+build/bench/faust/%.o: build/bench/faust/%.c bench/faustpeer.c bench/peers.h
+	$(CC) $(PEER_CFLAGS) -DFAUST_C='"$(CURDIR)/$<"' -DFAUST_CLASS=$* -iquote bench -c bench/faustpeer.c -o $@
+
+build/bench/hand%.o: bench/hand%.c bench/peers.h
+	@mkdir -p $(dir $@)
+	$(CC) $(PEER_CFLAGS) -Wall -Wextra -pedantic -c $< -o $@
+
+build/bench/chart: build/bench/chart.o build/bench/handrc.o build/bench/handclip.o $(FAUST_OBJS) build/bench/stkshim.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS) -lstk -lstdc++
+.PHONY: chart
+.SECONDARY: $(FAUST_OBJS:.o=.c)
 
 # Long fuzzing runs: the S-expression reader over 2 million mutated texts
 # (about a minute; WDRT_FUZZ_SEED=N picks another sequence).

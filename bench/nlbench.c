@@ -53,8 +53,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "benchlib.h"
 #include "gen.h"
@@ -100,57 +98,6 @@ static const SolverCase contact_cases[] = {
     {"newton", {"--solver", "newton", NULL}},
 };
 
-static int is_word_char(char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-           c == '.' || c == ':';
-}
-
-/* Writes `text` to `path` with every solver=VALUE key dropped from the code
- * of its lines (comments are kept as they are).  Returns the number of keys
- * dropped, or -1 if the file cannot be written. */
-static int write_without_solver(const char *text, const char *path) {
-    FILE *f = fopen(path, "w");
-    if (!f)
-        return -1;
-    int dropped = 0;
-    const char *p = text;
-    while (*p) {
-        const char *eol = strchr(p, '\n');
-        size_t len = eol ? (size_t)(eol - p) + 1 : strlen(p);
-        /* the code of the line ends at its comment */
-        size_t code = 0;
-        const char *q = p;
-        while (q < p + len && (*q == ' ' || *q == '\t'))
-            q++;
-        if (!(q < p + len && *q == '*'))
-            while (code < len && p[code] != '#' && p[code] != ';' && p[code] != '\n')
-                code++;
-        size_t k = 0;
-        while (k < code) {
-            if (!strncmp(p + k, "solver", 6) && (k == 0 || !is_word_char(p[k - 1]))) {
-                size_t j = k + 6;
-                while (j < code && (p[j] == ' ' || p[j] == '\t'))
-                    j++;
-                if (j < code && p[j] == '=') {
-                    j++;
-                    while (j < code && (p[j] == ' ' || p[j] == '\t'))
-                        j++;
-                    while (j < code && is_word_char(p[j]))
-                        j++;
-                    k = j;
-                    dropped++;
-                    continue;
-                }
-            }
-            fputc(p[k], f);
-            k++;
-        }
-        fwrite(p + code, 1, len - code, f);
-        p += len;
-    }
-    return fclose(f) == 0 ? dropped : -1;
-}
-
 /* ---- the netlist ---- */
 
 typedef struct NlKinds {
@@ -195,7 +142,7 @@ static int voice_dir(const char *text, Built *b) {
     }
     char src[128];
     snprintf(src, sizeof src, "%s/netlist.wdn", b->v.dir);
-    if (write_without_solver(text, src) < 0) {
+    if (bench_drop_solver_keys(text, src) < 0) {
         fprintf(stderr, "nlbench: cannot write %s\n", src);
         return -1;
     }
@@ -365,48 +312,14 @@ static int do_job(Prep *p, const Job *j) {
     return voice_make(p->path, p->built[j->r][j->s].v.dir, &p->cases[j->s], rates[j->r]) == 0 ? 0 : 1;
 }
 
-/* Runs the jobs, as many at a time as there are processors; *status[k]
- * gets job k's result (0: done). */
-static void run_jobs(Prep *p, const Job *jobs, int njobs, int *status) {
-    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
-    int slots = ncpu < 1 ? 1 : ncpu > 16 ? 16 : (int)ncpu;
-    pid_t pid[16];
-    int which[16], running = 0, next = 0;
-    while (next < njobs || running > 0) {
-        while (next < njobs && running < slots) {
-            fflush(NULL);
-            pid_t c = fork();
-            if (c < 0) { /* no more processes: do it here */
-                status[next] = do_job(p, &jobs[next]);
-                next++;
-                continue;
-            }
-            if (c == 0)
-                _exit(do_job(p, &jobs[next]));
-            pid[running] = c;
-            which[running] = next++;
-            running++;
-        }
-        if (running == 0)
-            continue;
-        int st = 0;
-        pid_t done = wait(&st);
-        if (done < 0) {
-            if (errno == EINTR)
-                continue;
-            for (int k = 0; k < running; k++)
-                status[which[k]] = 1;
-            return;
-        }
-        for (int k = 0; k < running; k++)
-            if (pid[k] == done) {
-                status[which[k]] = WIFEXITED(st) ? WEXITSTATUS(st) : 1;
-                pid[k] = pid[running - 1];
-                which[k] = which[running - 1];
-                running--;
-                break;
-            }
-    }
+typedef struct JobList {
+    Prep *p;
+    const Job *jobs;
+} JobList;
+
+static int run_job(void *ctx, int k) {
+    JobList *l = ctx;
+    return do_job(l->p, &l->jobs[k]);
 }
 
 /* Makes the voices' directories and the shared buffers, then builds every
@@ -446,9 +359,8 @@ static int prepare(Prep *p, const char *text) {
         for (int s = 0; s < p->ncases; s++)
             if (voice_dir(text, &p->built[r][s]) == 0)
                 jobs[njobs++] = (Job){1, r, 0, 0, s};
-    for (int k = 0; k < njobs; k++)
-        status[k] = 1;
-    run_jobs(p, jobs, njobs, status);
+    JobList list = {p, jobs};
+    bench_run_jobs(njobs, run_job, &list, status);
     for (int k = 0; k < njobs; k++)
         if (jobs[k].kind == 1)
             p->built[jobs[k].r][jobs[k].s].ok = status[k] == 0;

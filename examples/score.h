@@ -49,7 +49,10 @@ static int ic_id(const wdv_class *c, const char *name) {
 }
 
 /* Posts the score: for each note a play from pool 0, its pitch, its
- * strike, and its damper coming down when the key is let go. */
+ * strike, and its damper coming down when the key is let go.  The pitch
+ * is set with wdrt_engine_set_prepared: the design of the strings' loops
+ * for it is made here, on the control side, so the audio side only takes
+ * it (the score holds fewer notes than the engine has design slots). */
 static int post_score(wdrt_engine *e, const wdv_class *c) {
     const int f0 = param_id(c, "f0"), dmp = param_id(c, "dmp");
     const int ids[4] = {ic_id(c, "v(h1)"), ic_id(c, "x(h1)"), ic_id(c, "v(h2)"), ic_id(c, "x(h2)")};
@@ -59,7 +62,7 @@ static int post_score(wdrt_engine *e, const wdv_class *c) {
         double vals[4] = {n->speed, -1e-3, n->speed, -1e-3};
         wdrt_voice note;
         if (wdrt_engine_play(e, at, 0, 1.0, 0, &note) != WDRT_OK ||
-            wdrt_engine_set(e, at, note, f0, n->f0) != WDRT_OK ||
+            wdrt_engine_set_prepared(e, at, note, 1, &f0, &n->f0) != WDRT_OK ||
             wdrt_engine_strike(e, at, note, 4, ids, vals) != WDRT_OK)
             return -1;
         if (n->t < 3.0 && wdrt_engine_set(e, at + (uint64_t)(SCORE_HOLD * SCORE_RATE), note, dmp,

@@ -11,7 +11,8 @@
 #include "gen.h"
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
-    tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[];
+    tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
+    tmpl_lu[], tmpl_retune[], tmpl_root[], tmpl_nl_adapt[], tmpl_settle[], tmpl_params[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
 static const char *mem_args(int k, const NlSpec *nl) {
@@ -43,12 +44,11 @@ typedef struct Buf {
     size_t len, cap;
 } Buf;
 
-static void emit(Buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void emit(Buf *b, const char *fmt, ...) {
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(NULL, 0, fmt, ap);
-    va_end(ap);
+static void vemit(Buf *b, const char *fmt, va_list ap) {
+    va_list aq;
+    va_copy(aq, ap);
+    int n = vsnprintf(NULL, 0, fmt, aq);
+    va_end(aq);
     if (b->len + (size_t)n + 1 > b->cap) {
         size_t cap = (b->cap + (size_t)n + 1) * 2;
         char *s = arena_alloc(cap);
@@ -57,20 +57,132 @@ static void emit(Buf *b, const char *fmt, ...) {
         b->s = s;
         b->cap = cap;
     }
-    va_start(ap, fmt);
     vsnprintf(b->s + b->len, (size_t)n + 1, fmt, ap);
-    va_end(ap);
     b->len += (size_t)n;
+}
+
+static void emit(Buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void emit(Buf *b, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vemit(b, fmt, ap);
+    va_end(ap);
 }
 
 static const char *str(Buf *b) { return b->s ? b->s : ""; }
 
+/* ---- names: what the printed text uses ----
+ *
+ * The printer keeps a statement, a local or a helper only when some kept
+ * text names it.  A Names is a set of the identifiers of C text (those in
+ * comments and string literals left out). */
+
+typedef struct Names {
+    const char **key; /* open addressing, NULL: empty */
+    size_t cap, n;
+} Names;
+
+static uint32_t name_hash(const char *s, size_t len) {
+    uint32_t h = 2166136261u;
+    for (size_t i = 0; i < len; i++)
+        h = (h ^ (unsigned char)s[i]) * 16777619u;
+    return h;
+}
+
+static bool names_find(const Names *t, const char *s, size_t len, size_t *slot) {
+    if (!t->cap)
+        return false;
+    size_t i = name_hash(s, len) & (t->cap - 1);
+    for (; t->key[i]; i = (i + 1) & (t->cap - 1))
+        if (strlen(t->key[i]) == len && !memcmp(t->key[i], s, len))
+            break;
+    *slot = i;
+    return t->key[i] != NULL;
+}
+
+static void names_put(Names *t, const char *s, size_t len) {
+    size_t i;
+    if (2 * (t->n + 1) > t->cap) {
+        Names u = {arena_alloc(sizeof(char *) * (t->cap ? 2 * t->cap : 64)), t->cap ? 2 * t->cap : 64, 0};
+        for (size_t k = 0; k < t->cap; k++)
+            if (t->key[k]) {
+                names_find(&u, t->key[k], strlen(t->key[k]), &i);
+                u.key[i] = t->key[k];
+                u.n++;
+            }
+        *t = u;
+    }
+    if (!names_find(t, s, len, &i)) {
+        t->key[i] = arena_strndup(s, len);
+        t->n++;
+    }
+}
+
+static bool names_has(const Names *t, const char *name) {
+    size_t i;
+    return names_find(t, name, strlen(name), &i);
+}
+
+static bool ident_char(char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_';
+}
+
+/* Adds every identifier of C text (numbers, comments and literals skipped). */
+static void names_scan(Names *t, const char *s) {
+    while (*s) {
+        if (s[0] == '/' && s[1] == '*') {
+            const char *e = strstr(s + 2, "*/");
+            s = e ? e + 2 : s + strlen(s);
+        } else if (*s == '"' || *s == '\'') {
+            char q = *s++;
+            while (*s && *s != q)
+                s += s[0] == '\\' && s[1] ? 2 : 1;
+            s += *s != 0;
+        } else if (ident_char(*s)) {
+            const char *b = s;
+            while (ident_char(*s))
+                s++;
+            if (!(*b >= '0' && *b <= '9'))
+                names_put(t, b, (size_t)(s - b));
+        } else {
+            s++;
+        }
+    }
+}
+
+/* True if C text names `name`. */
+static bool uses(const char *text, const char *name) {
+    Names t = {0};
+    names_scan(&t, text);
+    return names_has(&t, name);
+}
+
 /* ---- emission context ---- */
+
+/* One statement of the sample loop: `def` names the temporary it defines,
+ * kept only if a later kept statement names it; a statement without one
+ * stores a state or an output and always stays. */
+typedef struct Stmt {
+    const char *def, *text;
+} Stmt;
+
+/* A local of process, loaded before the sample loop: `name` (NULL: always
+ * there), its declaration, and for a state the lines that store it back
+ * after the loop and flush it between runs. */
+typedef struct Local {
+    const char *name, *decl, *wb, *fl;
+} Local;
 
 typedef struct Ctx {
     const Wdf *w;
     const Circuit *c;
     bool single;
+    bool energy;     /* work accounting in process */
+    bool settle;     /* reset and set_ic solve for a consistent Kirchhoff state */
+    Stmt *stmt;      /* the sample loop, in order */
+    int nstmt, capstmt;
+    Local *loc;      /* the locals of process, in order */
+    int nloc, caploc;
     int *react;      /* tree node -> reactance index or -1 */
     int *koff;       /* tree node -> first coefficient in c_k */
     int nk, nreact;
@@ -80,6 +192,7 @@ typedef struct Ctx {
     int *nl_edge;    /* nonlinear index -> its edge in that root */
     int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
     int *moff;       /* root -> offset of its matrix in c_M */
+    bool **mzero;    /* root -> its matrix's entries that vanish for any port resistances */
     int nM;          /* entries of all root matrices */
     int nline;       /* transmission lines */
     int *line_of;    /* element -> its line, or -1 */
@@ -110,6 +223,37 @@ typedef struct Ctx {
     int *wtap_port;  /* tap -> ports facing a and b (2 each) */
 } Ctx;
 
+/* A statement of the sample loop defining `def` (NULL: a store). */
+static void put(Ctx *x, const char *def, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static void put(Ctx *x, const char *def, const char *fmt, ...) {
+    Buf b = {0};
+    va_list ap;
+    va_start(ap, fmt);
+    vemit(&b, fmt, ap);
+    va_end(ap);
+    if (x->nstmt == x->capstmt) {
+        x->capstmt = x->capstmt ? 2 * x->capstmt : 64;
+        Stmt *n = arena_alloc(sizeof(Stmt) * (size_t)x->capstmt);
+        if (x->nstmt)
+            memcpy(n, x->stmt, sizeof(Stmt) * (size_t)x->nstmt);
+        x->stmt = n;
+    }
+    x->stmt[x->nstmt++] = (Stmt){def, str(&b)};
+}
+
+/* A local of process named `name` (NULL: always there), its declaration,
+ * write-back and flush (each NULL: none). */
+static void local(Ctx *x, const char *name, const char *decl, const char *wb, const char *fl) {
+    if (x->nloc == x->caploc) {
+        x->caploc = x->caploc ? 2 * x->caploc : 64;
+        Local *n = arena_alloc(sizeof(Local) * (size_t)x->caploc);
+        if (x->nloc)
+            memcpy(n, x->loc, sizeof(Local) * (size_t)x->nloc);
+        x->loc = n;
+    }
+    x->loc[x->nloc++] = (Local){name, decl ? decl : "", wb ? wb : "", fl ? fl : ""};
+}
+
 static const char *lit(Ctx *x, double v) {
     char *s = format("%.17g", v);
     if (!strpbrk(s, ".eni"))
@@ -118,6 +262,11 @@ static const char *lit(Ctx *x, double v) {
         s = format("%sf", s);
     return v < 0 ? format("(%s)", s) : s;
 }
+
+/* s in double: a float voice's value cast where the arithmetic is double
+ * on purpose (coefficients, a Newton solve's answer), so that no float
+ * is widened unseen. */
+static const char *dbl(Ctx *x, const char *s) { return x->single ? format("(double)%s", s) : s; }
 
 static const Elem *nl_elem(Ctx *x, int k) {
     return &x->c->elems[x->w->roots[x->nl_root[k]].edge[x->nl_edge[k]].elem];
@@ -167,6 +316,40 @@ static const char *guard(uint64_t mask) {
     return format("if (full || (d & 0x%llxULL))", (unsigned long long)mask);
 }
 
+/* Params a waveguide's loop design depends on (not its taps or port
+ * resistance, which move without a new design). */
+static uint64_t wg_design_params(const Waveguide *g) {
+    return expr_params(g->f0) | expr_params(g->B) | expr_params(g->fhf) | (g->t60 ? expr_params(g->t60) : 0) |
+           (g->t60hf ? expr_params(g->t60hf) : 0);
+}
+
+/* Params some waveguide's loop design depends on. */
+static uint64_t wg_params(const Circuit *c) {
+    uint64_t m = 0;
+    for (int w = 0; w < c->nwgs; w++)
+        m |= wg_design_params(&c->wgs[w]);
+    return m;
+}
+
+/* wg_spec_at: the spec of each waveguide's loop at rate fs (and params p
+ * when a design depends on them), for update and prepare alike. */
+static void emit_wg_specs(Ctx *x, Buf *o) {
+    const Circuit *c = x->c;
+    emit(o, "/* The spec of waveguide w's loop at rate fs%s. */\n", wg_params(c) ? " for params p" : "");
+    emit(o, "static void wg_spec_at(double fs, %sint w, wg_spec *sp) {\n    switch (w) {\n",
+         wg_params(c) ? "const double *p, " : "");
+    for (int w = 0; w < c->nwgs; w++) {
+        const Waveguide *g = &c->wgs[w];
+        emit(o, "    case %d: { /* %s */\n", w, g->name);
+        emit(o, "        const wg_spec s = {fs, fmax(%s, %.17g), %s, %s, %s, %s, %.17g, %.17g, %d, %d, %d};\n",
+             cexpr(x, g->f0), g->f0_min, cexpr(x, g->B), g->t60 ? cexpr(x, g->t60) : "0.0",
+             g->t60hf ? cexpr(x, g->t60hf) : "0.0", cexpr(x, g->fhf), g->nu1,
+             g->rad ? expr_eval(g->rad, NULL) : 0.0, g->nrad, g->M, g->nmin);
+        emit(o, "        *sp = s;\n        break;\n    }\n");
+    }
+    emit(o, "    }\n}\n");
+}
+
 static void emit_update(Ctx *x, Buf *o) {
     const Circuit *c = x->c;
     for (int i = 0; i < x->w->nnodes; i++) {
@@ -176,10 +359,14 @@ static void emit_update(Ctx *x, Buf *o) {
             const char *v = format("pos(%s)", cexpr(x, e->val));
             emit(o, "    %s /* %s (%s:%d:%d) */\n", guard(n->pmask), e->name, e->pos.file->path,
                  e->pos.line, e->pos.col);
-            if (e->kind == E_C)
-                emit(o, "        retune(st, %d, %d, T / (2 * %s), 1);\n", n->id, x->react[n->id], v);
-            else if (e->kind == E_L)
-                emit(o, "        retune(st, %d, %d, 2 * %s / T, 0);\n", n->id, x->react[n->id], v);
+            /* a reactance a param moves is retuned; one that none moves
+             * is set once, in init, from a cleared state */
+            if ((e->kind == E_C || e->kind == E_L) && n->pmask)
+                emit(o, "        retune(st, %d, %d, %s, %d);\n", n->id, x->react[n->id],
+                     e->kind == E_C ? format("T / (2 * %s)", v) : format("2 * %s / T", v), e->kind == E_C);
+            else if (e->kind == E_C || e->kind == E_L)
+                emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id,
+                     e->kind == E_C ? format("T / (2 * %s)", v) : format("2 * %s / T", v));
             else
                 emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, v);
             continue;
@@ -187,13 +374,13 @@ static void emit_update(Ctx *x, Buf *o) {
         emit(o, "    %s { /* %s adaptor */\n        double t = 0;\n", guard(n->pmask),
              n->kind == W_SERIES ? "series" : "parallel");
         for (int k = 0; k < n->nchild; k++)
-            emit(o, n->kind == W_SERIES ? "        t += st->c_R[%d];\n" : "        t += 1.0 / st->c_R[%d];\n",
-                 n->child[k]->id);
+            emit(o, n->kind == W_SERIES ? "        t += %s;\n" : "        t += 1.0 / %s;\n",
+                 dbl(x, format("st->c_R[%d]", n->child[k]->id)));
         emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id, n->kind == W_SERIES ? "t" : "1.0 / t");
         for (int k = 0; k < n->nchild; k++)
-            emit(o, n->kind == W_SERIES ? "        st->c_k[%d] = (real)(st->c_R[%d] / t);\n"
-                                        : "        st->c_k[%d] = (real)(1.0 / st->c_R[%d] / t);\n",
-                 x->koff[n->id] + k, n->child[k]->id);
+            emit(o, n->kind == W_SERIES ? "        st->c_k[%d] = (real)(%s / t);\n"
+                                        : "        st->c_k[%d] = (real)(1.0 / %s / t);\n",
+                 x->koff[n->id] + k, dbl(x, format("st->c_R[%d]", n->child[k]->id)));
         emit(o, "    }\n");
     }
     for (int k = 0; k < x->nnl; k++) {
@@ -218,8 +405,9 @@ static void emit_update(Ctx *x, Buf *o) {
                 emit(o, "        const double t_X = st->s_nX[%d] - st->c_nl[%d], t_old = st->c_nl[%d];\n"
                         "        if (!full && t_X > 0 && t_old > 0 && t_new %s t_old)\n"
                         "            st->s_nX[%d] = (real)(%s);\n", k, 4 * k + 3, 4 * k + j, j == 0 ? ">" : "<", k,
-                     j == 0 ? format("st->c_nl[%d] + t_X * pow(t_old / t_new, 1 / (st->c_nl[%d] + 1))", 4 * k + 3, 4 * k + 1)
-                            : format("st->s_nX[%d] + t_new - t_old", k));
+                     j == 0 ? format("%s + t_X * pow(t_old / t_new, 1 / (st->c_nl[%d] + 1))",
+                                     dbl(x, format("st->c_nl[%d]", 4 * k + 3)), 4 * k + 1)
+                            : format("%s + t_new - t_old", dbl(x, format("st->s_nX[%d]", k))));
             emit(o, "        st->c_nl[%d] = (real)t_new;\n    }\n", 4 * k + j);
         }
     }
@@ -235,18 +423,14 @@ static void emit_update(Ctx *x, Buf *o) {
     }
     for (int w = 0; w < c->nwgs; w++) {
         const Waveguide *g = &c->wgs[w];
-        uint64_t mask = expr_params(g->f0) | expr_params(g->Rp) | expr_params(g->B) | expr_params(g->fhf) |
-                        (g->t60 ? expr_params(g->t60) : 0) | (g->t60hf ? expr_params(g->t60hf) : 0);
+        uint64_t mask = wg_design_params(g) | expr_params(g->Rp);
         Buf xs = {0};
         for (int j = 0; j < g->ntaps; j++) {
             mask |= expr_params(g->tap_pos[j]);
             emit(&xs, "%s%s", j ? ", " : "", cexpr(x, g->tap_pos[j]));
         }
         emit(o, "    %s { /* %s (%s:%d:%d) */\n", guard(mask), g->name, g->pos.file->path, g->pos.line, g->pos.col);
-        emit(o, "        const wg_spec sp = {st->fs, fmax(%s, %.17g), %s, %s, %s, %s, %.17g, %.17g, %d, %d, %d};\n",
-             cexpr(x, g->f0), g->f0_min, cexpr(x, g->B), g->t60 ? cexpr(x, g->t60) : "0.0",
-             g->t60hf ? cexpr(x, g->t60hf) : "0.0", cexpr(x, g->fhf), g->nu1,
-             g->rad ? expr_eval(g->rad, NULL) : 0.0, g->nrad, g->M, g->nmin);
+        emit(o, "        wg_spec sp;\n        wg_spec_at(st->fs, %s%d, &sp);\n", wg_params(c) ? "p, " : "", w);
         emit(o, "        const double x[] = {%s};\n        wg_retune(st, %d, &sp, pos(%s), x);\n    }\n",
              g->ntaps ? str(&xs) : "0.0", w, cexpr(x, g->Rp));
     }
@@ -260,6 +444,15 @@ static void emit_update(Ctx *x, Buf *o) {
 
 /* ---- the sample loop ---- */
 
+/* Outputs that are displacement probes. */
+static int x_probes(const Circuit *c) {
+    int n = 0;
+    for (int k = 0; k < c->nouts; k++)
+        n += c->outs[k].kind == PR_X;
+    return n;
+}
+
+
 /* A waveguide port at a tap that a param moves: it may be off its string. */
 static bool roams(const Ctx *x, const Elem *e) {
     const Waveguide *g = &x->c->wgs[e->wg];
@@ -268,92 +461,96 @@ static bool roams(const Ctx *x, const Elem *e) {
 
 /* Each waveguide's right-going wave meets end b through the loop filters;
  * terminated ends reflect. */
-static void emit_waveguides(Ctx *x, Buf *o) {
+static void emit_waveguides(Ctx *x) {
     for (int w = 0; w < x->c->nwgs; w++) {
         const Waveguide *g = &x->c->wgs[w];
         int m = x->wv_size[w] - 1, R = x->wv_off[w], L = R + x->wv_size[w], f = x->wf_off[w];
-        emit(o, "        /* %s: the right-going wave meets end b through the loop filters */\n", g->name);
-        emit(o, "        real t_wb%d;\n        {\n", w);
-        emit(o, "            real t_x = s_wv[%d + ((t_pos - k_wNR%d) & %du)], t_y;\n", R, w, m);
-        emit(o, "            t_y = k_wlb%d * t_x - k_wla%d * s_wf%d;\n            s_wq%d = s_wf%d;\n            s_wf%d = t_y;\n"
-                "            t_x = t_y;\n", w, w, f, f, f, f);
+        Buf o = {0};
+        emit(&o, "        /* %s: the right-going wave meets end b through the loop filters */\n", g->name);
+        emit(&o, "        real t_wb%d;\n        {\n", w);
+        emit(&o, "            real t_x = s_wv[%d + ((t_pos - k_wNR%d) & %du)], t_y;\n", R, w, m);
+        emit(&o, "            t_y = k_wlb%d * t_x - k_wla%d * s_wf%d;\n            s_wq%d = s_wf%d;\n            s_wf%d = t_y;\n"
+                 "            t_x = t_y;\n", w, w, f, f, f, f);
         int j = f + 1;
         for (int k = 0; k < g->nrad; k++, j++)
-            emit(o, "            t_y = (1 + k_wra%d) * t_x - k_wra%d * s_wf%d;\n            s_wq%d = s_wf%d;\n"
-                    "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
+            emit(&o, "            t_y = (1 + k_wra%d) * t_x - k_wra%d * s_wf%d;\n            s_wq%d = s_wf%d;\n"
+                     "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
         /* the allpass lattice: its top stage in use gives the output, then
          * each stage m down to 1 passes on its rotation; the state of stage
          * m holds the output of stage m - 1 a sample earlier */
-        emit(o, "            {\n                real *const t_s = st->s_wf + %d, *const t_q = st->s_wfp + %d;\n"
-                "                const real *const t_c = st->c_wf + %d;\n"
-                "                const unsigned t_J = %s;\n"
-                "                const real t_k = t_c[2 * t_J - 2], t_cc = t_c[2 * t_J - 1], t_sm = t_s[t_J - 1];\n"
-                "                t_y = t_k * t_x + t_cc * t_sm;\n"
-                "                t_x = t_cc * t_x - t_k * t_sm;\n",
+        emit(&o, "            {\n                real *const t_s = st->s_wf + %d, *const t_q = st->s_wfp + %d;\n"
+                 "                const real *const t_c = st->c_wf + %d;\n"
+                 "                const unsigned t_J = %s;\n"
+                 "                const real t_k = t_c[2 * t_J - 2], t_cc = t_c[2 * t_J - 1], t_sm = t_s[t_J - 1];\n"
+                 "                t_y = t_k * t_x + t_cc * t_sm;\n"
+                 "                t_x = t_cc * t_x - t_k * t_sm;\n",
              j, j, x->wc_off[w] + 3, g->M == 1 ? "1u" : format("k_wJ%d", w));
         if (g->M > 1) /* one stage is the fine tuning alone */
-            emit(o, "                for (unsigned m = t_J - 1; m >= 1; m--) {\n"
-                    "                    const real t_km = t_c[2 * m - 2], t_cm = t_c[2 * m - 1], t_s1 = t_s[m - 1];\n"
-                    "                    t_q[m] = t_s[m];\n"
-                    "                    t_s[m] = t_km * t_x + t_cm * t_s1;\n"
-                    "                    t_x = t_cm * t_x - t_km * t_s1;\n                }\n");
-        emit(o, "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n"
-                "            t_wb%d = t_y;\n        }\n", w);
+            emit(&o, "                for (unsigned m = t_J - 1; m >= 1; m--) {\n"
+                     "                    const real t_km = t_c[2 * m - 2], t_cm = t_c[2 * m - 1], t_s1 = t_s[m - 1];\n"
+                     "                    t_q[m] = t_s[m];\n"
+                     "                    t_s[m] = t_km * t_x + t_cm * t_s1;\n"
+                     "                    t_x = t_cm * t_x - t_km * t_s1;\n                }\n");
+        emit(&o, "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n"
+                 "            t_wb%d = t_y;\n        }\n", w);
+        put(x, NULL, "%s", str(&o));
         for (int e = 0; e < 2; e++) {
             if (g->end[e])
                 continue;
             const char *sg = g->term[e] == 'c' ? "" : "-";
             if (e == 0)
-                emit(o, "        s_wv[%d + (t_pos & %du)] = flush(%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]); /* end a */\n",
-                     R, m, sg, L, w, m);
+                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = flush(%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]); /* end a */\n",
+                    R, m, sg, L, w, m);
             else
-                emit(o, "        s_wv[%d + (t_pos & %du)] = flush(%st_wb%d); /* end b */\n", L, m, sg, w);
+                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = flush(%st_wb%d); /* end b */\n", L, m, sg, w);
         }
     }
 }
 
-static void emit_forward(Ctx *x, Buf *o) {
+static void emit_forward(Ctx *x) {
     const Circuit *c = x->c;
-    emit_waveguides(x, o);
-    emit(o, "        /* forward: waves reflected towards the root */\n");
+    emit_waveguides(x);
+    put(x, NULL, "        /* forward: waves reflected towards the root */\n");
     for (int i = 0; i < x->w->nnodes; i++) {
         const WNode *n = x->w->nodes[i];
+        const char *tb = format("t_b%d", i);
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
             switch (e->kind) {
             case E_R: x->b[i] = "0"; break;
             case E_C: x->b[i] = format("s_a%d", x->react[i]); break;
             case E_L:
-                emit(o, "        const real t_b%d = -s_a%d; /* %s */\n", i, x->react[i], e->name);
-                x->b[i] = format("t_b%d", i);
+                put(x, tb, "        const real t_b%d = -s_a%d; /* %s */\n", i, x->react[i], e->name);
+                x->b[i] = tb;
                 break;
             case E_V: x->b[i] = drive_of(x, e); break;
             case E_I:
-                emit(o, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
-                x->b[i] = format("t_b%d", i);
+                put(x, tb, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
+                x->b[i] = tb;
                 break;
             case E_W: {
                 int k = x->line_of[n->elem];
-                emit(o, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
-                     x->dl_off[e->peer], k, x->dl_size[k] - 1, e->name);
-                x->b[i] = format("t_b%d", i);
+                put(x, tb, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
+                    x->dl_off[e->peer], k, x->dl_size[k] - 1, e->name);
+                x->b[i] = tb;
                 break;
             }
             case E_S: {
                 int w = e->wg, m = x->wv_size[w] - 1;
                 const Waveguide *g = &x->c->wgs[w];
                 if (e->side == 0)
-                    emit(o, "        const real t_b%d = %s; /* %s */\n", i, e->pt == g->ntaps + 1 ? format("t_wb%d", w)
-                         : format("s_wv[%d + ((t_pos - k_wk%d) & %du)]", x->wv_off[w], x->wt_off[w] + e->pt - 1, m), e->name);
+                    put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, e->pt == g->ntaps + 1 ? format("t_wb%d", w)
+                        : format("s_wv[%d + ((t_pos - k_wk%d) & %du)]", x->wv_off[w], x->wt_off[w] + e->pt - 1, m), e->name);
                 else
-                    emit(o, "        const real t_b%d = s_wv[%d + ((t_pos - %s) & %du)]; /* %s */\n", i,
-                         x->wv_off[w] + x->wv_size[w], e->pt == 0 ? format("k_wNL%d", w)
-                         : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m, e->name);
-                emit(o, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
-                x->b[i] = format("t_b%d", i);
+                    put(x, tb, "        const real t_b%d = s_wv[%d + ((t_pos - %s) & %du)]; /* %s */\n", i,
+                        x->wv_off[w] + x->wv_size[w], e->pt == 0 ? format("k_wNL%d", w)
+                        : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m, e->name);
+                put(x, NULL, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
+                x->b[i] = tb;
                 if (roams(x, e)) {
                     /* a tap off its string sends nothing into its junction */
-                    emit(o, "        const real t_bo%d = k_won%d ? t_b%d : %s;\n", i, x->wt_off[w] + e->pt - 1, i, lit(x, 0));
+                    put(x, format("t_bo%d", i), "        const real t_bo%d = k_won%d ? t_b%d : %s;\n", i,
+                        x->wt_off[w] + e->pt - 1, i, lit(x, 0));
                     x->b[i] = format("t_bo%d", i);
                 }
                 break;
@@ -377,8 +574,8 @@ static void emit_forward(Ctx *x, Buf *o) {
             x->b[i] = "0";
             continue;
         }
-        emit(o, "        const real t_b%d = %s;\n", i, str(&t));
-        x->b[i] = format("t_b%d", i);
+        put(x, tb, "        const real t_b%d = %s;\n", i, str(&t));
+        x->b[i] = tb;
     }
 }
 
@@ -393,95 +590,6 @@ static const char *root_in(Ctx *x, int b, int j) {
 static Solver solver_of(Ctx *x, const NlSpec *nl) {
     return nl->solver != SOLVER_DEFAULT ? nl->solver : x->opt->solver != SOLVER_DEFAULT ? x->opt->solver
                                                                                       : SOLVER_NEWTON;
-}
-
-/* The wave a nonlinear edge reflects, from the wave the root sends it. */
-static void emit_nl_solve(Ctx *x, Buf *o, int k) {
-    const Elem *e = nl_elem(x, k);
-    const NlSpec *nl = e->nl;
-    const char *tol = format("%.17g", x->opt->tol);
-    int it = x->opt->maxit;
-    emit(o, "        real t_bn%d; /* %s (%s:%d:%d) */\n", k, e->name, e->pos.file->path, e->pos.line, e->pos.col);
-    if (nl->kind == NL_CONTACT && !nl->mutated)
-        emit(o, "        int t_open%d;\n", k);
-    emit(o, "        {\n");
-    if (nl->mutated == 'C') { /* passive stepping of a stored charge: cap_solve */
-        emit(o, "            const el_law t_L = %s;\n            double t_v;\n", el_law_init(k, nl, true));
-        emit(o, "            s_nf%d = (real)cap_solve(&t_L, t_an%d, k_Rn%d, s_nf%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %d, &t_v);\n",
-             k, k, k, k, k, k, tol, it);
-        emit(o, "            s_nX%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
-        return;
-    }
-    if (nl->mutated == 'L' || nl->kind == NL_CONTACT) { /* passive stepping of a stored energy: el_solve */
-        const char *solve = format("el_solve(&t_L, t_an%d, k_Rn%d, t_X, s_nv%d, s_nf%d, 0.5 * k_T, %s, %d)", k, k, k,
-                                   k, tol, it);
-        emit(o, "            const el_law t_L = %s;\n", el_law_init(k, nl, true));
-        if (nl->kind == NL_CONTACT) /* open with no force left, and staying open at v = a: a passes */
-            emit(o, "            const double t_X = s_nX%d - c_nl%d_3;\n"
-                    "            const double t_v = s_nf%d == 0 && !(t_X > 0) && !(t_X + 0.5 * k_T * (t_an%d + s_nv%d) > 0)\n"
-                    "                                   ? (double)t_an%d : %s;\n", k, k, k, k, k, k, solve);
-        else
-            emit(o, "            const double t_X = s_nX%d;\n            const double t_v = %s;\n", k, solve);
-        emit(o, "            s_nX%d += k_hT * (real)(t_v + s_nv%d);\n", k, k);
-        if (nl->kind == NL_CONTACT)
-            emit(o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n"
-                    "            (void)t_open%d;\n", k, k, k);
-        emit(o, "            s_nf%d = (real)((t_an%d - t_v) / k_Rn%d);\n", k, k, k);
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n        }\n", k, k, k);
-        return;
-    }
-    switch (solver_of(x, nl)) {
-    case SOLVER_PWL:
-        emit(o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
-        emit(o, "            (void)s_nv%d;\n", k);
-        break;
-    case SOLVER_OMEGA:
-        emit(o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
-             nl->pair, tol, it);
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
-        break;
-    default:
-        emit(o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
-             k, k, k, k, nl->pair, k, tol, it);
-        emit(o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - t_an%d);\n", k, k, k);
-        break;
-    }
-    emit(o, "        }\n");
-}
-
-static void emit_root(Ctx *x, Buf *o, int b) {
-    const Root *r = &x->w->roots[b];
-    emit(o, "        /* root %d */\n", b);
-    for (int k = r->nport; k < r->nport + r->nnl; k++) {
-        Buf t = {0};
-        for (int j = 0; j < r->nedge; j++) {
-            const char *in = root_in(x, b, j);
-            if (j != k && !is_zero(in))
-                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
-        }
-        int g = x->nl_first[b] + k - r->nport;
-        emit(o, "        const real t_an%d = %s;\n", g, t.len ? str(&t) : lit(x, 0));
-        emit_nl_solve(x, o, g);
-    }
-    for (int k = 0; k < r->nedge; k++) {
-        if (r->edge[k].kind == 3)
-            continue;
-        Buf t = {0};
-        for (int j = 0; j < r->nedge; j++) {
-            const char *in = root_in(x, b, j);
-            if (!is_zero(in))
-                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
-        }
-        const char *v = t.len ? str(&t) : lit(x, 0);
-        if (r->edge[k].kind == 0) {
-            emit(o, "        const real t_a%d = %s;\n", r->edge[k].node->id, v);
-            x->a[r->edge[k].node->id] = format("t_a%d", r->edge[k].node->id);
-        } else {
-            emit(o, "        const real t_r%d_%d = %s; /* %s of %s */\n", b, k, v,
-                 r->edge[k].kind == 1 ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
-        }
-    }
 }
 
 /* The element at the other side of a waveguide port's point. */
@@ -529,8 +637,145 @@ static int tap_kind(Ctx *x, int ei, int *open, int *nopen) {
     return *nopen ? 2 : ports == 2 && !other ? 1 : 0;
 }
 
-static void emit_backward(Ctx *x, Buf *o) {
-    emit(o, "        /* backward: waves sent to the leaves */\n");
+/* True if some tap's wave waits on contact k being open. */
+static bool contact_gates(Ctx *x, int k) {
+    int open[64], nopen;
+    for (int i = 0; i < x->w->nnodes; i++) {
+        const WNode *n = x->w->nodes[i];
+        if (n->kind != W_LEAF || x->c->elems[n->elem].kind != E_S || tap_kind(x, n->elem, open, &nopen) != 2)
+            continue;
+        for (int j = 0; j < nopen; j++)
+            if (open[j] == k)
+                return true;
+    }
+    return false;
+}
+
+/* The wave a nonlinear edge reflects, from the wave the root sends it. */
+static void emit_nl_solve(Ctx *x, int k) {
+    const Elem *e = nl_elem(x, k);
+    const NlSpec *nl = e->nl;
+    const char *tol = format("%.17g", x->opt->tol);
+    const char *an = dbl(x, format("t_an%d", k));
+    int it = x->opt->maxit;
+    bool gates = nl->kind == NL_CONTACT && !nl->mutated && contact_gates(x, k);
+    Buf o = {0};
+    emit(&o, "        real t_bn%d; /* %s (%s:%d:%d) */\n", k, e->name, e->pos.file->path, e->pos.line, e->pos.col);
+    if (gates)
+        emit(&o, "        int t_open%d;\n", k);
+    emit(&o, "        {\n");
+    if (nl->mutated == 'C') { /* passive stepping of a stored charge: cap_solve */
+        emit(&o, "            const el_law t_L = %s;\n            double t_v;\n", el_law_init(k, nl, true));
+        emit(&o, "            s_nf%d = (real)cap_solve(&t_L, t_an%d, k_Rn%d, s_nf%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %d, &t_v);\n",
+             k, k, k, k, k, k, tol, it);
+        emit(&o, "            s_nX%d = (real)((%s - t_v) / %s);\n", k, an, dbl(x, format("k_Rn%d", k)));
+        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n        }\n", k, k, an);
+        put(x, NULL, "%s", str(&o));
+        return;
+    }
+    if (nl->mutated == 'L' || nl->kind == NL_CONTACT) { /* passive stepping of a stored energy: el_solve */
+        const char *solve = format("el_solve(&t_L, t_an%d, k_Rn%d, t_X, s_nv%d, s_nf%d, 0.5 * k_T, %s, %d)", k, k, k,
+                                   k, tol, it);
+        emit(&o, "            const el_law t_L = %s;\n", el_law_init(k, nl, true));
+        if (nl->kind == NL_CONTACT) /* open with no force left, and staying open at v = a: a passes */
+            emit(&o, "            const double t_X = %s - c_nl%d_3;\n"
+                     "            const double t_v = s_nf%d == 0 && !(t_X > 0) && !(t_X + 0.5 * k_T * %s > 0)\n"
+                     "                                   ? (double)t_an%d : %s;\n", dbl(x, format("s_nX%d", k)), k, k,
+                 dbl(x, format("(t_an%d + s_nv%d)", k, k)), k, solve);
+        else
+            emit(&o, "            const double t_X = s_nX%d;\n            const double t_v = %s;\n", k, solve);
+        emit(&o, "            s_nX%d += k_hT * (real)(t_v + %s);\n", k, dbl(x, format("s_nv%d", k)));
+        if (gates)
+            emit(&o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n", k, k);
+        emit(&o, "            s_nf%d = (real)((%s - t_v) / %s);\n", k, an, dbl(x, format("k_Rn%d", k)));
+        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n        }\n", k, k, an);
+        put(x, NULL, "%s", str(&o));
+        return;
+    }
+    switch (solver_of(x, nl)) {
+    case SOLVER_PWL:
+        emit(&o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
+        break;
+    case SOLVER_OMEGA:
+        emit(&o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k,
+             k, nl->pair, tol, it);
+        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n", k, k, an);
+        break;
+    default:
+        emit(&o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
+             k, k, k, k, nl->pair, k, tol, it);
+        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n", k, k, an);
+        break;
+    }
+    emit(&o, "        }\n");
+    put(x, NULL, "%s", str(&o));
+}
+
+/* Entries of root r's matrix that vanish for any port resistances (an
+ * adapted port reflects nothing, say): zero at the defaults, and again
+ * with every port's resistance moved and the nonlinear edges adapted
+ * anew.  The sample loop leaves their products out. */
+static bool *root_zeros(const Root *r) {
+    int ne = r->nedge, np = r->nport + r->nnl;
+    bool *z = arena_alloc(sizeof(bool) * (size_t)(ne * ne));
+    double *R = arena_alloc(sizeof(double) * (size_t)(np + 1)), *M = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    for (int i = 0; i < ne * ne; i++)
+        z[i] = r->M[i] == 0;
+    for (int trial = 0; trial < 2; trial++) {
+        for (int k = 0; k < r->nport; k++)
+            R[k] = r->R[k] * (trial ? 0.61 : 1.37) * (1 + 0.173 * k);
+        for (int k = r->nport; k < np; k++)
+            if (scatter_thevenin(r, R, k, &R[k]) != 0)
+                R[k] = r->R[k];
+        bool ok = scatter_root(r, R, M) == 0;
+        for (int k = 0; k < ne; k++) {
+            double big = 0;
+            for (int j = 0; j < ne; j++)
+                big = fmax(big, fabs(M[k * ne + j]));
+            for (int j = 0; j < ne; j++)
+                z[k * ne + j] = z[k * ne + j] && ok && fabs(M[k * ne + j]) <= 1e-12 * big;
+        }
+    }
+    return z;
+}
+
+static void emit_root(Ctx *x, int b) {
+    const Root *r = &x->w->roots[b];
+    put(x, NULL, "        /* root %d */\n", b);
+    for (int k = r->nport; k < r->nport + r->nnl; k++) {
+        Buf t = {0};
+        for (int j = 0; j < r->nedge; j++) {
+            const char *in = root_in(x, b, j);
+            if (j != k && !is_zero(in) && !x->mzero[b][k * r->nedge + j])
+                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
+        }
+        int g = x->nl_first[b] + k - r->nport;
+        put(x, format("t_an%d", g), "        const real t_an%d = %s;\n", g, t.len ? str(&t) : lit(x, 0));
+        emit_nl_solve(x, g);
+    }
+    for (int k = 0; k < r->nedge; k++) {
+        if (r->edge[k].kind == 3)
+            continue;
+        Buf t = {0};
+        for (int j = 0; j < r->nedge; j++) {
+            const char *in = root_in(x, b, j);
+            if (!is_zero(in) && !x->mzero[b][k * r->nedge + j])
+                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
+        }
+        const char *v = t.len ? str(&t) : lit(x, 0);
+        if (r->edge[k].kind == 0) {
+            int id = r->edge[k].node->id;
+            put(x, format("t_a%d", id), "        const real t_a%d = %s;\n", id, v);
+            x->a[id] = format("t_a%d", id);
+        } else {
+            put(x, format("t_r%d_%d", b, k), "        const real t_r%d_%d = %s; /* %s of %s */\n", b, k, v,
+                r->edge[k].kind == 1 ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
+        }
+    }
+}
+
+static void emit_backward(Ctx *x) {
+    put(x, NULL, "        /* backward: waves sent to the leaves */\n");
     for (int i = x->w->nnodes - 1; i >= 0; i--) {
         const WNode *n = x->w->nodes[i];
         const char *a = x->a[i], *b = x->b[i];
@@ -539,17 +784,16 @@ static void emit_backward(Ctx *x, Buf *o) {
             x->bpost[i] = b;
             if (e->kind == E_C || e->kind == E_L) {
                 int r = x->react[i];
-                emit(o, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
+                put(x, NULL, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
             } else if (e->kind == E_W) {
-                emit(o, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
-                     x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
+                put(x, NULL, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
+                    x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
             } else if (e->kind == E_S) {
                 int open[64], nopen, tk = tap_kind(x, n->elem, open, &nopen);
                 if (tk == 1) {
                     /* nothing else meets here: the wave passes untouched */
                     int pe = partner_port(x, n->elem);
-                    emit(o, "        (void)t_a%d; /* %s: transparent */\n", i, e->name);
                     x->a[i] = x->b[x->w->leaf_of[pe]->id];
                     x->bpost[i] = b;
                     continue;
@@ -562,38 +806,39 @@ static void emit_backward(Ctx *x, Buf *o) {
                 else
                     d = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
                 /* untouched while its contacts are open or it is off its string */
-                Buf cond = {0};
+                Buf cond = {0}, o = {0};
                 if (roams(x, e))
                     emit(&cond, "k_won%d", tap);
                 for (int j = 0; j < nopen; j++)
                     emit(&cond, "%s%st_open%d%s", j ? " && " : cond.len ? " && !(" : "!(", "", open[j],
                          j == nopen - 1 ? ")" : "");
                 if (cond.len)
-                    emit(o, "        if (%s)\n    ", str(&cond));
-                emit(o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
+                    emit(&o, "        if (%s)\n    ", str(&cond));
+                emit(&o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
                      x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, a, e->name);
-            } else {
-                emit(o, "        (void)%s; /* %s */\n", a, e->name);
+                put(x, NULL, "%s", str(&o));
             }
             continue;
         }
         if (n->kind == W_SERIES) {
-            emit(o, "        const real t_d%d = %s%s%s;\n", i, a, is_zero(b) ? "" : " - ", is_zero(b) ? "" : b);
+            put(x, format("t_d%d", i), "        const real t_d%d = %s%s%s;\n", i, a, is_zero(b) ? "" : " - ",
+                is_zero(b) ? "" : b);
             for (int k = 0; k < n->nchild; k++) {
                 int cid = n->child[k]->id;
                 const char *bc = x->b[cid];
-                emit(o, "        const real t_a%d = %s%s%sc_k%d * t_d%d;\n", cid, is_zero(bc) ? "" : bc,
-                     n->pol[k] > 0 ? (is_zero(bc) ? "" : " + ") : (is_zero(bc) ? "-" : " - "), "",
-                     x->koff[i] + k, i);
+                put(x, format("t_a%d", cid), "        const real t_a%d = %s%s%sc_k%d * t_d%d;\n", cid,
+                    is_zero(bc) ? "" : bc, n->pol[k] > 0 ? (is_zero(bc) ? "" : " + ") : (is_zero(bc) ? "-" : " - "), "",
+                    x->koff[i] + k, i);
                 x->a[cid] = format("t_a%d", cid);
             }
         } else {
-            emit(o, "        const real t_s%d = %s%s%s;\n", i, a, is_zero(b) ? "" : " + ", is_zero(b) ? "" : b);
+            put(x, format("t_s%d", i), "        const real t_s%d = %s%s%s;\n", i, a, is_zero(b) ? "" : " + ",
+                is_zero(b) ? "" : b);
             for (int k = 0; k < n->nchild; k++) {
                 int cid = n->child[k]->id;
                 const char *bc = x->b[cid];
-                emit(o, "        const real t_a%d = %st_s%d%s%s;\n", cid, n->pol[k] > 0 ? "" : "-", i,
-                     is_zero(bc) ? "" : " - ", is_zero(bc) ? "" : bc);
+                put(x, format("t_a%d", cid), "        const real t_a%d = %st_s%d%s%s;\n", cid, n->pol[k] > 0 ? "" : "-",
+                    i, is_zero(bc) ? "" : " - ", is_zero(bc) ? "" : bc);
                 x->a[cid] = format("t_a%d", cid);
             }
         }
@@ -659,19 +904,19 @@ static const char *pair_v(Ctx *x, const int *n) {
     return format("(%s) - (%s)", a, b);
 }
 
-static void emit_outputs(Ctx *x, Buf *o) {
+static void emit_outputs(Ctx *x) {
     const Circuit *c = x->c;
     int xp = 0;
-    emit(o, "        /* outputs */\n");
+    put(x, NULL, "        /* outputs */\n");
     for (int k = 0; k < c->nouts; k++) {
         const Probe *p = &c->outs[k];
         switch (p->kind) {
-        case PR_V: emit(o, "        out[%d][n] = (double)(%s);\n", k, pair_v(x, p->n)); break;
-        case PR_I: case PR_F: emit(o, "        out[%d][n] = (double)(%s);\n", k, elem_i(x, p->elem)); break;
+        case PR_V: put(x, NULL, "        out[%d][n] = (double)(%s);\n", k, pair_v(x, p->n)); break;
+        case PR_I: case PR_F: put(x, NULL, "        out[%d][n] = (double)(%s);\n", k, elem_i(x, p->elem)); break;
         case PR_X:
-            emit(o, "        {\n            const real t_v = %s;\n", pair_v(x, p->n));
-            emit(o, "            s_x%d += 0.5 * k_T * ((double)t_v + (double)s_xv%d);\n            s_xv%d = t_v;\n", xp, xp, xp);
-            emit(o, "            out[%d][n] = (double)s_x%d;\n        }\n", k, xp);
+            put(x, NULL, "        {\n            const real t_v = %s;\n"
+                         "            s_x%d += 0.5 * k_T * ((double)t_v + (double)s_xv%d);\n            s_xv%d = t_v;\n"
+                         "            out[%d][n] = (double)s_x%d;\n        }\n", pair_v(x, p->n), xp, xp, xp, k, xp);
             xp++;
             break;
         }
@@ -679,125 +924,182 @@ static void emit_outputs(Ctx *x, Buf *o) {
 }
 
 /* work done by the sources, trapezoidal averages: W += -T (e+e')(i+i')/4 */
-static void emit_work(Ctx *x, Buf *o) {
+static void emit_work(Ctx *x) {
     const Circuit *c = x->c;
-    if (!x->nsrc)
+    if (!x->energy || !x->nsrc)
         return;
-    emit(o, "        /* work of the sources */\n");
+    put(x, NULL, "        /* work of the sources */\n");
     for (int i = 0; i < c->nelems; i++) {
         int s = x->src[i];
         if (s < 0)
             continue;
         const Elem *e = &c->elems[i];
         const char *dr = drive_of(x, e), *other = e->kind == E_V ? elem_i(x, i) : elem_v(x, i);
-        emit(o, "        {\n            const real t_o = %s;\n", other);
-        emit(o, "            s_work += k_qT * (double)(%s + s_we%d) * (double)(t_o + s_wi%d);\n", dr, s, s);
-        emit(o, "            s_we%d = %s;\n            s_wi%d = t_o;\n        }\n", s, dr, s);
+        put(x, NULL, "        {\n            const real t_o = %s;\n"
+                     "            s_work += k_qT * (double)(%s + s_e%d) * (double)(t_o + s_wi%d);\n"
+                     "            s_e%d = %s;\n            s_wi%d = t_o;\n        }\n", other, dr, s, s, s, dr, s);
     }
+}
+
+/* The sample loop's statements that an output or a state needs: from the
+ * last back, a definition stays if a statement kept after it names it.
+ * Returns their text; *live then holds every name it uses. */
+static const char *sample_text(Ctx *x, Names *live) {
+    bool *keep = arena_alloc(sizeof(bool) * (size_t)(x->nstmt + 1));
+    for (int i = x->nstmt - 1; i >= 0; i--) {
+        const Stmt *s = &x->stmt[i];
+        if (s->def && !names_has(live, s->def))
+            continue;
+        keep[i] = true;
+        names_scan(live, s->text);
+    }
+    Buf b = {0};
+    for (int i = 0; i < x->nstmt; i++)
+        if (keep[i])
+            emit(&b, "%s", x->stmt[i].text);
+    return str(&b);
 }
 
 /* ---- hoisting and write-back ---- */
 
-static void emit_hoist(Ctx *x, Buf *o, Buf *wb, Buf *fl) {
+/* The locals of process (block-rate values, and states held in registers
+ * through the loop), each with its write-back and flush. */
+static void emit_hoist(Ctx *x) {
     const Circuit *c = x->c;
-    emit(o, "    const real k_hT = (real)(0.5 / st->fs);\n    const double k_qT = -0.25 / st->fs;\n");
-    emit(o, "    double s_work = st->s_work;\n    (void)k_hT;\n    (void)k_qT;\n");
-    emit(wb, "    st->s_work = s_work;\n");
-    if (x->nline || c->nwgs) {
-        emit(o, "    unsigned t_pos = st->s_pos;\n    real *const s_dl = st->s_dl;\n    real *const s_wv = st->s_wv;\n");
-        emit(o, "    (void)s_dl;\n    (void)s_wv;\n");
-        for (int k = 0; k < x->nline; k++)
-            emit(o, "    const unsigned k_D%d = st->c_D[%d];\n", k, k);
-        emit(wb, "    st->s_pos = t_pos;\n");
-    }
+    local(x, "k_hT", "    const real k_hT = (real)(0.5 / st->fs);\n", NULL, NULL);
+    local(x, "k_qT", "    const double k_qT = -0.25 / st->fs;\n", NULL, NULL);
+    local(x, "s_work", "    double s_work = st->s_work;\n", "    st->s_work = s_work;\n", NULL);
+    if (x->nline || c->nwgs)
+        local(x, "t_pos", "    unsigned t_pos = st->s_pos;\n", "    st->s_pos = t_pos;\n", NULL);
+    local(x, "s_dl", "    real *const s_dl = st->s_dl;\n", NULL, NULL);
+    local(x, "s_wv", "    real *const s_wv = st->s_wv;\n", NULL, NULL);
+    for (int k = 0; k < x->nline; k++)
+        local(x, format("k_D%d", k), format("    const unsigned k_D%d = st->c_D[%d];\n", k, k), NULL, NULL);
     for (int w = 0; w < c->nwgs; w++) {
-        emit(o, "    const unsigned k_wNR%d = st->c_wN[%d], k_wNL%d = st->c_wN[%d];\n    (void)k_wNL%d;\n", w, 2 * w, w,
-             2 * w + 1, w);
+        local(x, format("k_wNR%d", w), format("    const unsigned k_wNR%d = st->c_wN[%d];\n", w, 2 * w), NULL, NULL);
+        local(x, format("k_wNL%d", w), format("    const unsigned k_wNL%d = st->c_wN[%d];\n", w, 2 * w + 1), NULL,
+              NULL);
         static const char *cf[] = {"lb", "la", "ra"};
         for (int j = 0; j < 3; j++)
-            emit(o, "    const real k_w%s%d = st->c_wf[%d];\n    (void)k_w%s%d;\n", cf[j], w, x->wc_off[w] + j, cf[j], w);
-
+            local(x, format("k_w%s%d", cf[j], w),
+                  format("    const real k_w%s%d = st->c_wf[%d];\n", cf[j], w, x->wc_off[w] + j), NULL, NULL);
         for (int j = 0; j < c->wgs[w].ntaps; j++) {
             int t = x->wt_off[w] + j;
-            emit(o, "    const unsigned k_wk%d = st->c_wk[%d];\n    const int k_won%d = st->c_won[%d];\n    (void)k_won%d;\n",
-                 t, t, t, t, t);
+            local(x, format("k_wk%d", t), format("    const unsigned k_wk%d = st->c_wk[%d];\n", t, t), NULL, NULL);
+            local(x, format("k_won%d", t), format("    const int k_won%d = st->c_won[%d];\n", t, t), NULL, NULL);
         }
     }
     for (int w = 0; w < c->nwgs; w++) {
         int f0 = x->wf_off[w], nl = 1 + c->wgs[w].nrad;
         for (int f = f0; f < f0 + nl; f++) { /* one-poles: locals */
-            emit(o, "    real s_wf%d = st->s_wf[%d], s_wq%d = st->s_wfp[%d];\n", f, f, f, f);
-            emit(wb, "    st->s_wf[%d] = s_wf%d;\n    st->s_wfp[%d] = s_wq%d;\n", f, f, f, f);
-            emit(fl, "        s_wf%d = flush(s_wf%d);\n        s_wq%d = flush(s_wq%d);\n", f, f, f, f);
+            local(x, format("s_wf%d", f), format("    real s_wf%d = st->s_wf[%d];\n", f, f),
+                  format("    st->s_wf[%d] = s_wf%d;\n", f, f), format("        s_wf%d = flush(s_wf%d);\n", f, f));
+            local(x, format("s_wq%d", f), format("    real s_wq%d = st->s_wfp[%d];\n", f, f),
+                  format("    st->s_wfp[%d] = s_wq%d;\n", f, f), format("        s_wq%d = flush(s_wq%d);\n", f, f));
         }
-        emit(o, "    const unsigned k_wJ%d = st->c_wJ[%d];\n    (void)k_wJ%d;\n", w, w, w);
-        emit(fl, "        for (int m = %d; m < %d; m++) {\n            st->s_wf[m] = flush(st->s_wf[m]);\n"
-                 "            st->s_wfp[m] = flush(st->s_wfp[m]);\n        }\n", f0 + nl, f0 + nl + c->wgs[w].M);
+        local(x, format("k_wJ%d", w), format("    const unsigned k_wJ%d = st->c_wJ[%d];\n", w, w), NULL, NULL);
+        local(x, NULL, NULL, NULL,
+              format("        for (int m = %d; m < %d; m++) {\n            st->s_wf[m] = flush(st->s_wf[m]);\n"
+                     "            st->s_wfp[m] = flush(st->s_wfp[m]);\n        }\n", f0 + nl, f0 + nl + c->wgs[w].M));
     }
-    for (int k = 0; k < x->nsp; k++) {
-        emit(o, "    real s_wpre%d = st->s_wpre[%d];\n", k, k);
-        emit(wb, "    st->s_wpre[%d] = s_wpre%d;\n", k, k);
-    }
-    emit(o, "    const double k_T = 1.0 / st->fs;\n    (void)k_T;\n");
+    for (int k = 0; k < x->nsp; k++)
+        local(x, format("s_wpre%d", k), format("    real s_wpre%d = st->s_wpre[%d];\n", k, k),
+              format("    st->s_wpre[%d] = s_wpre%d;\n", k, k), NULL);
+    local(x, "k_T", "    const double k_T = 1.0 / st->fs;\n", NULL, NULL);
     for (int k = 0; k < x->nnl; k++) {
-        emit(o, "    const real k_Rn%d = st->c_Rn[%d], k_gn%d = (real)(0.5 / st->c_Rn[%d]);\n", k, k, k, k);
-        emit(o, "    (void)k_Rn%d;\n    (void)k_gn%d;\n", k, k);
+        local(x, format("k_Rn%d", k), format("    const real k_Rn%d = st->c_Rn[%d];\n", k, k), NULL, NULL);
+        local(x, format("k_gn%d", k), format("    const real k_gn%d = %s / st->c_Rn[%d];\n", k, lit(x, 0.5), k), NULL,
+              NULL);
         for (int j = 0; j < 4; j++)
-            emit(o, "    const double c_nl%d_%d = st->c_nl[%d];\n    (void)c_nl%d_%d;\n", k, j, 4 * k + j, k, j);
-        emit(o, "    real s_nX%d = st->s_nX[%d], s_nv%d = st->s_nv[%d], s_nf%d = st->s_nf[%d];\n    (void)s_nf%d;\n", k,
-             k, k, k, k, k, k);
-        emit(wb, "    st->s_nX[%d] = s_nX%d;\n    st->s_nv[%d] = s_nv%d;\n    st->s_nf[%d] = s_nf%d;\n", k, k, k, k, k, k);
-        emit(fl, "        s_nX%d = flush(s_nX%d);\n        s_nv%d = flush(s_nv%d);\n        s_nf%d = flush(s_nf%d);\n", k,
-             k, k, k, k, k);
-        if (x->pwl_n[k])
-            emit(o, "    const real *const c_pa%d = st->c_pa + %d, *const c_pb%d = st->c_pb + %d, "
-                    "*const c_ps%d = st->c_ps + %d;\n", k, x->pwl_off[k], k, x->pwl_off[k], k, x->pwl_off[k]);
+            local(x, format("c_nl%d_%d", k, j),
+                  format("    const double c_nl%d_%d = %s;\n", k, j, dbl(x, format("st->c_nl[%d]", 4 * k + j))), NULL,
+                  NULL);
+        static const char *sn[] = {"X", "v", "f"};
+        for (int j = 0; j < 3; j++)
+            local(x, format("s_n%s%d", sn[j], k), format("    real s_n%s%d = st->s_n%s[%d];\n", sn[j], k, sn[j], k),
+                  format("    st->s_n%s[%d] = s_n%s%d;\n", sn[j], k, sn[j], k),
+                  format("        s_n%s%d = flush(s_n%s%d);\n", sn[j], k, sn[j], k));
+        if (x->pwl_n[k]) {
+            static const char *pn[] = {"a", "b", "s"};
+            for (int j = 0; j < 3; j++)
+                local(x, format("c_p%s%d", pn[j], k),
+                      format("    const real *const c_p%s%d = st->c_p%s + %d;\n", pn[j], k, pn[j], x->pwl_off[k]),
+                      NULL, NULL);
+        }
     }
     for (int i = 0; i < c->ninputs; i++)
-        emit(o, "    const double *const in%d = in[%d];\n", i, i);
+        local(x, format("in%d", i), format("    const double *const in%d = in[%d];\n", i, i), NULL, NULL);
     for (int i = 0; i < x->nk; i++)
-        emit(o, "    const real c_k%d = st->c_k[%d];\n    (void)c_k%d;\n", i, i, i);
+        local(x, format("c_k%d", i), format("    const real c_k%d = st->c_k[%d];\n", i, i), NULL, NULL);
     for (int b = 0; b < x->w->nroots; b++) {
         const Root *r = &x->w->roots[b];
         for (int k = 0; k < r->nedge; k++)
             for (int j = 0; j < r->nedge; j++)
-                emit(o, "    const real m%d_%d_%d = st->c_M[%d];\n    (void)m%d_%d_%d;\n", b, k, j,
-                     x->moff[b] + k * r->nedge + j, b, k, j);
+                local(x, format("m%d_%d_%d", b, k, j),
+                      format("    const real m%d_%d_%d = st->c_M[%d];\n", b, k, j, x->moff[b] + k * r->nedge + j),
+                      NULL, NULL);
     }
     for (int i = 0; i < x->w->nnodes; i++) {
-        emit(o, "    const real k_R%d = st->c_R[%d], k_g%d = (real)(0.5 / st->c_R[%d]);\n", i, i, i, i);
-        emit(o, "    (void)k_R%d;\n    (void)k_g%d;\n", i, i);
+        local(x, format("k_R%d", i), format("    const real k_R%d = st->c_R[%d];\n", i, i), NULL, NULL);
+        local(x, format("k_g%d", i), format("    const real k_g%d = %s / st->c_R[%d];\n", i, lit(x, 0.5), i), NULL,
+              NULL);
     }
     for (int i = 0; i < c->nelems; i++)
         if (x->src[i] >= 0 && c->elems[i].input < 0)
-            emit(o, "    const real c_e%d = st->c_e[%d];\n    (void)c_e%d;\n", x->src[i], x->src[i], x->src[i]);
-    for (int r2 = 0; r2 < x->nreact; r2++) {
-        emit(o, "    real s_a%d = st->s_a[%d], s_b%d = st->s_b[%d];\n", r2, r2, r2, r2);
-        emit(wb, "    st->s_a[%d] = s_a%d;\n    st->s_b[%d] = s_b%d;\n", r2, r2, r2, r2);
-        emit(fl, "        s_a%d = flush(s_a%d);\n        s_b%d = flush(s_b%d);\n", r2, r2, r2, r2);
+            local(x, format("c_e%d", x->src[i]), format("    const real c_e%d = st->c_e[%d];\n", x->src[i], x->src[i]),
+                  NULL, NULL);
+    for (int r = 0; r < x->nreact; r++) {
+        local(x, format("s_a%d", r), format("    real s_a%d = st->s_a[%d];\n", r, r),
+              format("    st->s_a[%d] = s_a%d;\n", r, r), format("        s_a%d = flush(s_a%d);\n", r, r));
+        local(x, format("s_b%d", r), format("    real s_b%d = st->s_b[%d];\n", r, r),
+              format("    st->s_b[%d] = s_b%d;\n", r, r), format("        s_b%d = flush(s_b%d);\n", r, r));
     }
-    int xp = 0;
-    for (int k = 0; k < c->nouts; k++)
-        if (c->outs[k].kind == PR_X) {
-            emit(o, "    double s_x%d = st->s_x[%d];\n    real s_xv%d = st->s_xv[%d];\n", xp, xp, xp, xp);
-            emit(wb, "    st->s_x[%d] = s_x%d;\n    st->s_xv[%d] = s_xv%d;\n", xp, xp, xp, xp);
-            emit(fl, "        s_xv%d = flush(s_xv%d);\n", xp, xp);
-            xp++;
-        }
+    for (int k = 0; k < x_probes(c); k++) {
+        local(x, format("s_x%d", k), format("    double s_x%d = st->s_x[%d];\n", k, k),
+              format("    st->s_x[%d] = s_x%d;\n", k, k), NULL);
+        local(x, format("s_xv%d", k), format("    real s_xv%d = st->s_xv[%d];\n", k, k),
+              format("    st->s_xv[%d] = s_xv%d;\n", k, k), format("        s_xv%d = flush(s_xv%d);\n", k, k));
+    }
     for (int s = 0; s < x->nsrc; s++) {
-        emit(o, "    real s_we%d = st->s_we[%d], s_wi%d = st->s_wi[%d];\n", s, s, s, s);
-        emit(wb, "    st->s_we[%d] = s_we%d;\n    st->s_wi[%d] = s_wi%d;\n", s, s, s, s);
+        local(x, format("s_e%d", s), format("    real s_e%d = st->s_e[%d];\n", s, s),
+              format("    st->s_e[%d] = s_e%d;\n", s, s), NULL);
+        local(x, format("s_wi%d", s), format("    real s_wi%d = st->s_wi[%d];\n", s, s),
+              format("    st->s_wi[%d] = s_wi%d;\n", s, s), NULL);
     }
+    /* without the accounting, the drive of the last sample is kept for
+     * settle once a block */
+    if (x->nsrc && x->settle && !x->energy) {
+        Buf wb = {0};
+        for (int i = 0; i < c->nelems; i++) {
+            const Elem *e = &c->elems[i];
+            if (x->src[i] >= 0)
+                emit(&wb, "        st->s_e[%d] = %s;\n", x->src[i],
+                     e->input >= 0 ? format("(real)in[%d][nframes - 1]", e->input) : format("st->c_e[%d]", x->src[i]));
+        }
+        local(x, NULL, NULL, format("    if (nframes > 0) {\n%s    }\n", str(&wb)), NULL);
+    }
+}
+
+/* The locals that kept text names (and those their declarations name),
+ * in order: declarations, write-backs, flushes. */
+static void print_locals(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl) {
+    bool *keep = arena_alloc(sizeof(bool) * (size_t)(x->nloc + 1));
+    for (int i = x->nloc - 1; i >= 0; i--) {
+        const Local *l = &x->loc[i];
+        if (l->name && !names_has(live, l->name))
+            continue;
+        keep[i] = true;
+        names_scan(live, l->decl);
+    }
+    for (int i = 0; i < x->nloc; i++)
+        if (keep[i]) {
+            emit(decl, "%s", x->loc[i].decl);
+            emit(wb, "%s", x->loc[i].wb);
+            emit(fl, "%s", x->loc[i].fl);
+        }
 }
 
 /* ---- reset, initial conditions, energy ---- */
-
-static int x_probes(const Circuit *c) {
-    int n = 0;
-    for (int k = 0; k < c->nouts; k++)
-        n += c->outs[k].kind == PR_X;
-    return n;
-}
 
 static const char *ic_node_value(Ctx *x, char fn, int node) {
     if (node == 0)
@@ -808,15 +1110,29 @@ static const char *ic_node_value(Ctx *x, char fn, int node) {
     return "0";
 }
 
+/* The force (current) nonlinear edge k holds at rest: a contact's or a
+ * nonlinear inductor's elastic one; diodes and curves carry none. */
+static bool nl_has_force(Ctx *x, int k) {
+    const NlSpec *nl = nl_elem(x, k)->nl;
+    return nl->mutated == 'L' || (nl->kind == NL_CONTACT && !nl->mutated);
+}
+
+/* The state a voice keeps of its sources' drives: the last one, for
+ * settle and the work. */
+static bool keeps_drive(Ctx *x) { return x->nsrc && (x->settle || x->energy); }
+
+/* What reset sets after clearing the states (initial conditions, then
+ * the Kirchhoff state from settle), and in *probes what settle then sets
+ * of nonlinear edges and displacement probes from the node values x[]. */
 static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
     const Circuit *c = x->c;
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         WNode *n = x->w->leaf_of[i];
-        if (e->ic && n)
+        if (e->ic && n && x->settle)
             emit(o, "    react[%d] = %s; /* %s */\n", x->react[n->id], cexpr(x, e->ic), e->name);
-        if (x->src[i] >= 0 && e->input < 0)
-            emit(o, "    st->s_we[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
+        if (x->src[i] >= 0 && e->input < 0 && keeps_drive(x))
+            emit(o, "    st->s_e[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
@@ -827,8 +1143,11 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
              e->n[0] ? format("x[%d]", e->n[0] - 1) : "0", e->n[1] ? format("x[%d]", e->n[1] - 1) : "0");
         /* the last force of a contact or inductor; a capacitor holds the
          * charge of the voltage across it */
-        emit(probes, e->nl->mutated == 'C' ? "        st->s_nf[%d] = st->s_nv[%d];\n"
-                                           : "        st->s_nf[%d] = (real)nl_force(st, %d);\n", k, k);
+        if (e->nl->mutated == 'C')
+            emit(probes, "        st->s_nf[%d] = st->s_nv[%d];\n", k, k);
+        else
+            emit(probes, nl_has_force(x, k) ? "        st->s_nf[%d] = (real)nl_force(st, %d);\n"
+                                            : "        st->s_nf[%d] = 0;\n", k, k);
     }
     int xp = 0;
     for (int k = 0; k < c->nouts; k++) {
@@ -844,9 +1163,20 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
     if (c->nwgs)
         emit(o, "    memset(st->s_wv, 0, sizeof st->s_wv);\n    memset(st->s_wf, 0, sizeof st->s_wf);\n"
                 "    memset(st->s_wfp, 0, sizeof st->s_wfp);\n    memset(st->s_wpre, 0, sizeof st->s_wpre);\n");
-    emit(o, "    settle(st, react);\n");
+    if (x->settle)
+        emit(o, "    settle(st, %s);\n", x->nreact ? "react" : "NULL");
 }
 
+/* Locals c_nlK_0 and c_nlK_1 (Is, n Vt) that mem_args names for the
+ * diode law behind mutator k. */
+static const char *mem_locals(int k, const NlSpec *nl) {
+    if (nl->kind != NL_DIODE)
+        return "";
+    return format("const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d]; ", k, 4 * k, k, 4 * k + 1);
+}
+
+/* Stored energy (into o) and, into kirch, the reactances' Kirchhoff
+ * values (v of C, i of L) read back from their waves. */
 static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
     for (int w = 0; w < x->c->nwgs; w++)
         emit(o, "    E += wg_energy(st, %d); /* %s */\n", w, x->c->wgs[w].name);
@@ -864,50 +1194,49 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
                 "            double a = st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)];\n"
                 "            s += 0.25 * a * a;\n"
                 "        }\n"
-                "        E += s / (4 * st->fs * st->c_R[%d]);\n    }\n",
-             e->name, k, x->dl_off[i], x->dl_size[k] - 1, x->dl_off[i], x->dl_size[k] - 1, x->w->leaf_of[i]->id);
+                "        E += s / (4 * st->fs * %s);\n    }\n",
+             e->name, k, x->dl_off[i], x->dl_size[k] - 1, x->dl_off[i], x->dl_size[k] - 1,
+             dbl(x, format("st->c_R[%d]", x->w->leaf_of[i]->id)));
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
         if (e->nl->mutated == 'L')
-            emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d]; (void)c_nl%d_0; (void)c_nl%d_1; "
-                    "E += mem_G(st->s_nX[%d], %s); }\n", k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl));
+            emit(o, "    { %sE += mem_G(st->s_nX[%d], %s); }\n", mem_locals(k, e->nl), k, mem_args(k, e->nl));
         if (e->nl->mutated == 'C')
-            emit(o, "    { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d], v = st->s_nf[%d]; double d; "
-                    "(void)c_nl%d_0; (void)c_nl%d_1; E += v * mem_g(v, %s, &d) - mem_G(v, %s); }\n",
-                 k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl), mem_args(k, e->nl));
+            emit(o, "    { %sconst double v = st->s_nf[%d]; double d; E += v * mem_g(v, %s, &d) - mem_G(v, %s); }\n",
+                 mem_locals(k, e->nl), k, mem_args(k, e->nl), mem_args(k, e->nl));
         if (e->nl->kind == NL_CONTACT)
             emit(o, "    { double X = st->s_nX[%d] - st->c_nl[%d], al = st->c_nl[%d]; "
-                    "if (X > 0) E += st->c_nl[%d] * pow(X, al + 1) / (al + 1); } /* %s */\n",
-                 k, 4 * k + 3, 4 * k + 1, 4 * k, e->name);
+                    "if (X > 0) E += %s * pow(X, al + 1) / (al + 1); } /* %s */\n",
+                 k, 4 * k + 3, 4 * k + 1, dbl(x, format("st->c_nl[%d]", 4 * k)), e->name);
     }
     for (int i = 0; i < x->w->nnodes; i++) {
         int r = x->react[i];
         if (r < 0)
             continue;
         bool cap = x->c->elems[x->w->nodes[i]->elem].kind == E_C;
-        emit(kirch, "    react[%d] = %s;\n", r,
-             cap ? format("0.5 * (st->s_a[%d] + st->s_b[%d])", r, r)
-                 : format("0.5 * (st->s_a[%d] - st->s_b[%d]) / st->c_R[%d]", r, r, i));
+        const char *R = dbl(x, format("st->c_R[%d]", i));
+        const char *v = dbl(x, format("(st->s_a[%d] + st->s_b[%d])", r, r));
+        const char *j = dbl(x, format("(st->s_a[%d] - st->s_b[%d])", r, r));
+        emit(kirch, "    react[%d] = %s;\n", r, cap ? format("0.5 * %s", v) : format("0.5 * %s / %s", j, R));
         if (cap)
-            emit(o, "    { double v = 0.5 * (st->s_a[%d] + st->s_b[%d]); E += 0.25 / (st->fs * st->c_R[%d]) * v * v; }\n",
-                 r, r, i);
+            emit(o, "    { double v = 0.5 * %s; E += 0.25 / (st->fs * %s) * v * v; }\n", v, R);
         else
-            emit(o, "    { double i = 0.5 * (st->s_a[%d] - st->s_b[%d]) / st->c_R[%d]; E += 0.25 * st->c_R[%d] / st->fs * i * i; }\n",
-                 r, r, i, i);
+            emit(o, "    { double i = 0.5 * %s / %s; E += 0.25 * %s / st->fs * i * i; }\n", j, R, R);
     }
 }
 
 /* strike targets: v(node) sets capacitors from node to ground, x(node)
- * sets inductors from node to ground and the node's displacement probes */
+ * sets inductors from node to ground and the node's displacement probes;
+ * a target that sets nothing has no case */
 static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
     const Circuit *c = x->c;
     int id = 0;
     for (int nd = 1; nd < c->nnodes; nd++)
         for (int f = 0; f < 2; f++, id++) {
             char fn = f ? 'x' : 'v';
+            Buf t = {0};
             emit(targets, "%s{\"%c(%s)\", \"%s\"}", id ? ", " : "", fn, c->nodes[nd], domain_unit(c->domain, fn));
-            emit(cases, "        case %d: /* %c(%s) */\n", id, fn, c->nodes[nd]);
             for (int i = 0; i < x->w->nnodes; i++) {
                 const WNode *n = x->w->nodes[i];
                 if (x->react[i] < 0)
@@ -917,10 +1246,10 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                 if (!sg || (e->kind == E_C) != (fn == 'v'))
                     continue;
                 if (e->kind == E_C)
-                    emit(cases, "            react[%d] = %s values[k];\n", x->react[i], sg > 0 ? "" : "-");
+                    emit(&t, "            react[%d] = %svalues[k];\n", x->react[i], sg > 0 ? "" : "-");
                 else
-                    emit(cases, "            react[%d] = %s values[k] / (0.5 * st->c_R[%d] / st->fs);\n",
-                         x->react[i], sg > 0 ? "" : "-", i);
+                    emit(&t, "            react[%d] = %svalues[k] / (0.5 * %s / st->fs);\n", x->react[i],
+                         sg > 0 ? "" : "-", dbl(x, format("st->c_R[%d]", i)));
             }
             /* a contact's compression is set from either of its nodes: its
              * distance from what it strikes, negative while apart */
@@ -928,16 +1257,17 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                 const Elem *e = nl_elem(x, k);
                 int sg = e->n[0] == nd ? 1 : e->n[1] == nd ? -1 : 0;
                 if (sg && e->nl->kind == NL_CONTACT)
-                    emit(cases, "            st->s_nX[%d] = (real)(%svalues[k]);\n", k, sg > 0 ? "" : "-");
+                    emit(&t, "            st->s_nX[%d] = (real)(%svalues[k]);\n", k, sg > 0 ? "" : "-");
             }
             int xp = 0;
             for (int k = 0; k < c->nouts; k++)
                 if (c->outs[k].kind == PR_X) {
                     if (fn == 'x' && c->outs[k].n[0] == nd && c->outs[k].n[1] == 0)
-                        emit(cases, "            st->s_x[%d] = values[k];\n", xp);
+                        emit(&t, "            st->s_x[%d] = values[k];\n", xp);
                     xp++;
                 }
-            emit(cases, "            break;\n");
+            if (t.len)
+                emit(cases, "        case %d: /* %c(%s) */\n%s            break;\n", id, fn, c->nodes[nd], str(&t));
         }
 }
 
@@ -963,9 +1293,8 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
                      str(&v), k, str(&i));
             }
             if (e->nl->mutated == 'L')
-                emit(force, "    if (k == %d) { const double c_nl%d_0 = st->c_nl[%d], c_nl%d_1 = st->c_nl[%d]; double d; "
-                            "(void)c_nl%d_0; (void)c_nl%d_1; return mem_g(st->s_nX[%d], %s, &d); }\n",
-                     k, k, 4 * k, k, 4 * k + 1, k, k, k, mem_args(k, e->nl));
+                emit(force, "    if (k == %d) { %sdouble d; return mem_g(st->s_nX[%d], %s, &d); }\n", k,
+                     mem_locals(k, e->nl), k, mem_args(k, e->nl));
         } else if (e->nl->kind == NL_CONTACT) {
             contact = true;
             emit(force, "    if (k == %d) { const el_law L = %s; double d; return el_F(&L, st->s_nX[%d] - st->c_nl[%d], &d); }\n",
@@ -1056,8 +1385,6 @@ static const char *descriptors(Ctx *x, char which) {
                  (step_params(c) >> i) & 1 ? "WDV_PARAM_STEP" : "0");
         }
     }
-    if (n == 0)
-        emit(&b, which == 'p' ? "{\"\", \"\", 0, 0, 0, 0}" : "{\"\", \"\"}");
     emit(&b, "}");
     return str(&b);
 }
@@ -1116,57 +1443,94 @@ static const char *ic_table(Ctx *x, int *nv) {
     return str(&b);
 }
 
+/* The fields of the state that keep each waveguide's loop design: the
+ * spec of the design in effect, and one prepare made, handed over by
+ * install (WG_NSPEC and WG_NREC doubles each, see waveguide_state.c.tmpl). */
+static const char *wg_fields(const Circuit *c) {
+    if (!c->nwgs)
+        return "";
+    const char *f = format("    double c_wsp[%d];      /* waveguides: the spec of each loop's design */\n", wg_nspec * c->nwgs);
+    if (wg_params(c))
+        f = format("%s    double c_wmade[%d];    /* waveguides: designs prepare made, handed over by install */\n", f,
+                   wg_nrec * c->nwgs);
+    return f;
+}
+
+/* The class's design_size, prepare and install: a voice whose loop
+ * designs depend on params has them. */
+static const char *design_entries(const Circuit *c) {
+    if (!wg_params(c))
+        return "0, NULL, NULL";
+    return "sizeof(double) * WG_NREC * N_WG, voice_prepare, voice_install";
+}
+
+/* One field of the state, if it has entries: C has no empty arrays, and a
+ * voice keeps nothing it does not use. */
+static void field(Buf *b, const char *type, const char *name, int n, const char *what) {
+    if (n > 0)
+        emit(b, "%s    %-26s /* %s */", b->len ? "\n" : "", format("%s %s[%d];", type, name, n), what);
+}
+
+/* A scalar field of the state, if the voice keeps it. */
+static void scalar(Buf *b, bool keep, const char *decl, const char *what) {
+    if (keep)
+        emit(b, "%s    %-26s /* %s */", b->len ? "\n" : "", decl, what);
+}
+
+/* The fields of the state.  A waveguide's are there whenever it is, even
+ * with no taps: the waveguide kernels name them all.  nd: rows of the
+ * solve workspace, 0 for none in the state. */
 static const char *state_fields(Ctx *x, int nd) {
     const Circuit *c = x->c;
     const char *r = format("%s_real", c->name);
-    int nx = x_probes(c);
-#define M1(n) ((n) > 0 ? (n) : 1)
-    return format(
-        "    double p[%d];          /* param values */\n"
-        "    unsigned long long dirty; /* params changed since the last coefficient update */\n"
-        "    double fs;             /* sample rate, Hz */\n"
-        "    %s c_R[%d];     /* port resistance of each tree node */\n"
-        "    %s c_k[%d];     /* adaptor coefficients */\n"
-        "    %s c_M[%d];     /* root adaptor matrix */\n"
-        "    %s c_e[%d];     /* control-rate source drives */\n"
-        "    %s s_a[%d];     /* reactances: last incident wave */\n"
-        "    %s s_b[%d];     /* reactances: last reflected wave */\n"
-        "    double s_x[%d];        /* displacement probes (double: an integral gathers rounding) */\n"
-        "    %s s_xv[%d];    /* displacement probes: last velocity */\n"
-        "    %s s_we[%d];    /* sources: last drive */\n"
-        "    %s s_wi[%d];    /* sources: last current (V) or voltage (I) */\n"
-        "    double s_work;         /* work done by the sources since reset */\n"
-        "    %s c_Rn[%d];    /* nonlinear edges: adapted port resistance */\n"
-        "    %s c_nl[%d];    /* nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact) */\n"
-        "    %s s_nX[%d];    /* contacts: x(n0) - x(n1), m */\n"
-        "    %s s_nv[%d];    /* nonlinear edges: last voltage (velocity) across */\n"
-        "    %s s_nf[%d];    /* contacts, nonlinear inductors: last current (force); capacitors: voltage of the charge */\n"
-        "    %s c_pa[%d];    /* piecewise-linear wave maps: a at the breakpoints */\n"
-        "    %s c_pb[%d];    /* b at the breakpoints */\n"
-        "    %s c_ps[%d];    /* slope db/da of each segment */\n"
-        "    %s s_dl[%d];    /* transmission lines: the waves that entered each end */\n"
-        "    unsigned s_pos;        /* transmission lines: next write position */\n"
-        "    unsigned c_D[%d];      /* transmission lines: delay in samples */\n"
-        "    %s s_wv[%d];    /* waveguides: right- and left-going lines */\n"
-        "    unsigned c_wN[%d];     /* waveguides: whole samples of each line */\n"
-        "    unsigned c_wJ[%d];     /* waveguides: stages of the allpass lattice in use */\n"
-        "    unsigned c_wk[%d];     /* waveguide taps: samples from end a */\n"
-        "    int c_won[%d];         /* waveguide taps: on their string (a moving tap may leave it) */\n"
-        "    double c_wR[%d];       /* waveguides: port resistance */\n"
-        "    %s c_wf[%d];    /* waveguides: loss b and a, radiation a, allpass lattice k and c */\n"
-        "    double c_ww[%d];       /* waveguides: storage weights of their filters */\n"
-        "    %s s_wf[%d];    /* waveguide filters: states */\n"
-        "    %s s_wfp[%d];   /* waveguide filters: states a sample earlier */\n"
-        "    %s s_wpre[%d];  /* waveguide ports: the wave that last arrived */\n"
-        "    double w_A[%d];        /* solve workspace (control rate only) */\n"
-        "    double w_x[%d];\n"
-        "    int w_piv[%d];",
-        M1(c->nparams), r, M1(x->w->nnodes), r, M1(x->nk), r, x->nM, r, M1(x->nsrc), r, M1(x->nreact), r,
-        M1(x->nreact), M1(nx), r, M1(nx), r, M1(x->nsrc), r, M1(x->nsrc), r, M1(x->nnl), r, M1(4 * x->nnl),
-        r, M1(x->nnl), r, M1(x->nnl), r, M1(x->nnl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->npwl), r, M1(x->ndl), M1(x->nline),
-        r, M1(x->nwv), M1(2 * c->nwgs), M1(c->nwgs), M1(x->nwt), M1(x->nwt), M1(c->nwgs), r, M1(x->nwc), M1(2 * c->nwgs), r, M1(x->nwf),
-        r, M1(x->nwf), r, M1(x->nsp), nd * nd, nd, nd);
-#undef M1
+    int nx = x_probes(c), nw = c->nwgs, nctl = 0;
+    bool work = x->energy && x->nsrc;
+    for (int i = 0; i < c->nelems; i++)
+        nctl += x->src[i] >= 0 && c->elems[i].input < 0;
+#define W1(n) (nw ? ((n) > 0 ? (n) : 1) : 0)
+    Buf b = {0};
+    field(&b, "double", "p", c->nparams, "param values");
+    scalar(&b, c->nparams, "unsigned long long dirty;", "params changed since the last coefficient update");
+    scalar(&b, true, "double fs;", "sample rate, Hz");
+    field(&b, r, "c_R", x->w->nnodes, "port resistance of each tree node");
+    field(&b, r, "c_k", x->nk, "adaptor coefficients");
+    field(&b, r, "c_M", x->nM, "root adaptor matrix");
+    field(&b, r, "c_e", nctl ? x->nsrc : 0, "control-rate source drives");
+    field(&b, r, "s_a", x->nreact, "reactances: last incident wave");
+    field(&b, r, "s_b", x->nreact, "reactances: last reflected wave");
+    field(&b, "double", "s_x", nx, "displacement probes (double: an integral gathers rounding)");
+    field(&b, r, "s_xv", nx, "displacement probes: last velocity");
+    field(&b, r, "s_e", keeps_drive(x) ? x->nsrc : 0, "sources: the drive of the last sample");
+    field(&b, r, "s_wi", work ? x->nsrc : 0, "sources: last current (V) or voltage (I)");
+    scalar(&b, work, "double s_work;", "work done by the sources since reset");
+    field(&b, r, "c_Rn", x->nnl, "nonlinear edges: adapted port resistance");
+    field(&b, r, "c_nl", 4 * x->nnl, "nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact)");
+    field(&b, r, "s_nX", x->nnl, "contacts: x(n0) - x(n1), m");
+    field(&b, r, "s_nv", x->nnl, "nonlinear edges: last voltage (velocity) across");
+    field(&b, r, "s_nf", x->nnl,
+          "contacts, nonlinear inductors: last current (force); capacitors: voltage of the charge");
+    field(&b, r, "c_pa", x->npwl, "piecewise-linear wave maps: a at the breakpoints");
+    field(&b, r, "c_pb", x->npwl, "b at the breakpoints");
+    field(&b, r, "c_ps", x->npwl, "slope db/da of each segment");
+    field(&b, r, "s_dl", x->ndl, "transmission lines: the waves that entered each end");
+    scalar(&b, x->nline || nw, "unsigned s_pos;", "delays: next write position");
+    field(&b, "unsigned", "c_D", x->nline, "transmission lines: delay in samples");
+    field(&b, r, "s_wv", W1(x->nwv), "waveguides: right- and left-going lines");
+    field(&b, "unsigned", "c_wN", W1(2 * nw), "waveguides: whole samples of each line");
+    field(&b, "unsigned", "c_wJ", W1(nw), "waveguides: stages of the allpass lattice in use");
+    field(&b, "unsigned", "c_wk", W1(x->nwt), "waveguide taps: samples from end a");
+    field(&b, "int", "c_won", W1(x->nwt), "waveguide taps: on their string (a moving tap may leave it)");
+    field(&b, "double", "c_wR", W1(nw), "waveguides: port resistance");
+    field(&b, r, "c_wf", W1(x->nwc), "waveguides: loss b and a, radiation a, allpass lattice k and c");
+    field(&b, "double", "c_ww", W1(2 * nw), "waveguides: storage weights of their filters");
+    field(&b, r, "s_wf", W1(x->nwf), "waveguide filters: states");
+    field(&b, r, "s_wfp", W1(x->nwf), "waveguide filters: states a sample earlier");
+    field(&b, r, "s_wpre", W1(x->nsp), "waveguide ports: the wave that last arrived");
+    field(&b, "double", "w_A", nd * nd, "solve workspace (control rate only)");
+    field(&b, "double", "w_x", nd, "solve workspace: right-hand side");
+    field(&b, "int", "w_piv", nd, "solve workspace: pivots");
+#undef W1
+    return str(&b);
 }
 
 /* ---- templates ---- */
@@ -1252,10 +1616,12 @@ static void index_tree(Ctx *x) {
     }
     x->nl_first = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
     x->moff = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
+    x->mzero = arena_alloc(sizeof(bool *) * (size_t)(w->nroots + 1));
     for (int b = 0; b < w->nroots; b++) {
         x->nl_first[b] = x->nnl;
         x->nnl += w->roots[b].nnl;
         x->moff[b] = x->nM;
+        x->mzero[b] = root_zeros(&w->roots[b]);
         x->nM += w->roots[b].nedge * w->roots[b].nedge;
     }
     x->nl_root = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
@@ -1340,24 +1706,269 @@ static void index_tree(Ctx *x) {
         x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
 }
 
+/* ---- the voice's functions ---- */
+
+/* Helpers a voice's code may call, each after those it calls: a voice
+ * carries those its text names. */
+static const struct {
+    const char *name, *text;
+} helper_tab[] = {
+    {"UNUSED", "/* Marks a parameter the ABI passes that this voice has no use for. */\n"
+               "#if defined(__GNUC__)\n#define UNUSED __attribute__((unused))\n#else\n#define UNUSED\n#endif\n"},
+    {"clampd", "static double clampd(double x, double lo, double hi) { return x < lo ? lo : x > hi ? hi : x; }\n"},
+    {"pos", "static double pos(double x) { return x > 1e-18 && x < 1e300 ? x : x >= 1e300 ? 1e300 : 1e-18; }\n"},
+    {"potlin", "static double potlin(double x) { return clampd(x, 0, 1); }\n"},
+    {"potlog", "static double potlog(double x) { return (pow(10, 2 * clampd(x, 0, 1)) - 1) / 99; }\n"},
+    {"tapon", "/* 1 for a tap position on its string, else a conductance scale that takes\n"
+              " * its ports out of their junction */\n"
+              "static double tapon(double x) { return x > 0 && x < 1 ? 1 : 1e-9; }\n"},
+    {"flush", "static real flush(real x) { return x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
+    {"lu_factor", tmpl_lu},
+    {"retune", tmpl_retune},
+};
+
+/* The helpers that `text` (the voice without them) and `wg` (the
+ * waveguide kernels) name, in order.  clampd is named by the waveguides'
+ * prepare, which a voice has only with params, and then set_param names
+ * it too. */
+static const char *helpers(const char *text, const char *wg) {
+    int n = (int)(sizeof helper_tab / sizeof helper_tab[0]);
+    bool keep[sizeof helper_tab / sizeof helper_tab[0]] = {0};
+    Names used = {0}, wgn = {0};
+    names_scan(&used, text);
+    names_scan(&wgn, wg);
+    for (int k = n - 1; k >= 0; k--) {
+        const char *h = helper_tab[k].name;
+        keep[k] = names_has(&used, h) || (strcmp(h, "clampd") && names_has(&wgn, h));
+        if (keep[k])
+            names_scan(&used, helper_tab[k].text);
+    }
+    Buf b = {0};
+    for (int k = 0; k < n; k++)
+        if (keep[k])
+            emit(&b, "%s%s", b.len ? "\n" : "", helper_tab[k].text);
+    return str(&b);
+}
+
+/* The statements of the sample loop, in order. */
+static void emit_sample(Ctx *x) {
+    for (int i = 0; i < x->c->ninputs; i++)
+        put(x, format("t_in%d", i), "        const real t_in%d = (real)in%d[n];\n", i, i);
+    emit_forward(x);
+    for (int b = 0; b < x->w->nroots; b++)
+        emit_root(x, b);
+    emit_backward(x);
+    emit_outputs(x);
+    emit_work(x);
+    if (x->nline || x->c->nwgs)
+        put(x, NULL, "        t_pos++;\n");
+}
+
+/* A parameter list with the parameters `body` does not name marked
+ * UNUSED: each of `names` is the name of the declaration in `decls`
+ * at the same place. */
+static const char *params_of(const char *body, int n, const char *const *decls, const char *const *names) {
+    Buf b = {0};
+    for (int k = 0; k < n; k++)
+        emit(&b, "%s%s%s", k ? ", " : "", decls[k], uses(body, names[k]) ? "" : " UNUSED");
+    return str(&b);
+}
+
+/* A function body, with `local` (the state behind the void pointer)
+ * first if the rest names `st`. */
+static const char *with_st(const char *local, const char *body) {
+    return uses(body, "st") ? format("%s%s", local, body) : body;
+}
+
+/* What settle stores from its solve: the waves of each reactance and,
+ * with the accounting, the current or voltage of each source; then
+ * nonlinear edges and probes from the node values (`probes`). */
+static const char *settle_store(Ctx *x, int nicv, const char *probes) {
+    Buf b = {0};
+    bool work = x->energy && x->nsrc;
+    if (x->nreact || work) {
+        emit(&b, "    m = N_ICN - %d;\n"
+                 "    for (int k = 0; k < ne; k++) {\n"
+                 "        const short *e = ic_elem[k];\n"
+                 "        int p = e[1] - 1, q = e[2] - 1;\n"
+                 "        double v = ok ? (p >= 0 ? x[p] : 0) - (q >= 0 ? x[q] : 0) : 0, i = 0;\n"
+                 "        double R = e[3] >= 0 ? st->c_R[e[3]] : 0;\n"
+                 "        if (e[0] == 1 || e[0] == 3)\n"
+                 "            i = ok ? x[m++] : 0;\n"
+                 "        switch (e[0]) {\n"
+                 "        case 1: v = react[e[4]]; break;\n"
+                 "        case 2: i = react[e[4]]; break;\n", nicv);
+        if (work)
+            emit(&b, "        case 3: st->s_wi[e[5]] = (real)i; break;\n"
+                     "        case 5: st->s_wi[e[5]] = (real)((v - (double)st->s_e[e[5]]) / R); break;\n"
+                     "        case 4: case 6: st->s_wi[e[5]] = (real)v; break;\n");
+        emit(&b, "        }\n");
+        if (x->nreact)
+            emit(&b, "        if (e[0] == 1 || e[0] == 2) {\n"
+                     "            st->s_a[e[4]] = (real)(v + R * i);\n"
+                     "            st->s_b[e[4]] = (real)(v - R * i);\n"
+                     "        }\n");
+        emit(&b, "    }\n");
+    }
+    if (*probes)
+        emit(&b, "    if (ok) {\n%s    }\n", probes);
+    return str(&b);
+}
+
+/* The clearing of every signal state reset starts from. */
+static const char *clears(Ctx *x) {
+    Buf b = {0};
+    const char *arr[] = {x->nreact ? "s_a" : NULL, x->nreact ? "s_b" : NULL, x_probes(x->c) ? "s_x" : NULL,
+                         x_probes(x->c) ? "s_xv" : NULL, keeps_drive(x) ? "s_e" : NULL,
+                         x->energy && x->nsrc ? "s_wi" : NULL, x->ndl ? "s_dl" : NULL};
+    for (int k = 0; k < (int)(sizeof arr / sizeof arr[0]); k++)
+        if (arr[k])
+            emit(&b, "    memset(st->%s, 0, sizeof st->%s);\n", arr[k], arr[k]);
+    if (x->nline || x->c->nwgs)
+        emit(&b, "    st->s_pos = 0;\n");
+    if (x->energy && x->nsrc)
+        emit(&b, "    st->s_work = 0;\n");
+    return str(&b);
+}
+
+/* The holes of a voice's templates, filled one part after another. */
+typedef struct Holes {
+    Hole h[96];
+    int n;
+} Holes;
+
+static void set(Holes *t, const char *name, const char *text) {
+    if (t->n == (int)(sizeof t->h / sizeof t->h[0]))
+        die("too many template holes");
+    t->h[t->n++] = (Hole){name, text};
+}
+
+static const char *fill_with(const char *tmpl, const Holes *t) { return fill(tmpl, t->h, t->n); }
+
+/* update: its parameters (the params changed `d`, `full`, as its guards
+ * name them), its locals, the call in init and the call when params
+ * changed (returned: nothing without params). */
+static const char *update_holes(Ctx *x, Holes *t, const char *body) {
+    const Circuit *c = x->c;
+    bool ud = uses(body, "d"), uf = uses(body, "full");
+    Buf head = {0};
+    if (uses(body, "p"))
+        emit(&head, "    const double *p = st->p;\n");
+    if (uses(body, "T"))
+        emit(&head, "    const double T = 1.0 / st->fs;\n");
+    set(t, "update_args", format("state *st%s%s", ud ? ", unsigned long long d" : "", uf ? ", int full" : ""));
+    set(t, "update", format("%s%s", str(&head), body));
+    set(t, "init", format("%s    update(st%s%s);\n",
+                          c->nparams ? "    for (int i = 0; i < N_PARAMS; i++)\n        st->p[i] = param_desc[i].def;\n"
+                                     : "",
+                          ud ? ", 0" : "", uf ? ", 1" : ""));
+    set(t, "param_fns", c->nparams ? tmpl_params
+                                   : "/* The voice has no params: every id is unknown. */\n"
+                                     "static int voice_set_param(void *vst UNUSED, int id UNUSED, double value UNUSED) { return -1; }\n\n"
+                                     "static double voice_get_param(const void *vst UNUSED, int id UNUSED) { return 0; }\n");
+    if (!c->nparams)
+        return "";
+    return format("    if (st->dirty) {\n        update(st%s%s);\n        st->dirty = 0;\n    }\n", ud ? ", st->dirty" : "",
+                  uf ? ", 0" : "");
+}
+
+/* process: the statements and locals its outputs and states need, and
+ * its parameters (UNUSED where a voice has no inputs, say). */
+static void process_holes(Ctx *x, Holes *t, const char *dirty) {
+    Names live = {0};
+    const char *sample = sample_text(x, &live);
+    Buf decl = {0}, wb = {0}, fl = {0};
+    print_locals(x, &live, &decl, &wb, &fl);
+    const char *head = format("%s%s", dirty, str(&decl)), *loop = format("%s%s%s", sample, str(&fl), str(&wb));
+    if (uses(format("%s%s", head, loop), "st"))
+        head = format("    state *st = vst;\n%s", head);
+    static const char *const decls[] = {"void *vst", "const double *const *in", "double *const *out"};
+    static const char *const names[] = {"vst", "in", "out"};
+    set(t, "process_args", format("%s, int nframes", params_of(format("%s%s", head, loop), 3, decls, names)));
+    set(t, "hoist", head);
+    set(t, "sample", sample);
+    set(t, "flush", str(&fl));
+    set(t, "writeback", str(&wb));
+}
+
+/* reset and set_ic: what they set before settle (`rest`: initial values;
+ * `kirch`: reactances read back; `cases`: each target's), and settle. */
+static void reset_holes(Ctx *x, Holes *t, const char *dirty, const char *rest, const char *kirch, const char *cases) {
+    const char *react = x->settle && x->nreact ? format("    double react[%d] = {0};\n", x->nreact) : "";
+    const char *st = "    state *st = vst;\n";
+    const char *reset = with_st(st, format("%s%s%s%s%s", uses(rest, "p") ? "    const double *p = st->p;\n" : "", react,
+                                           dirty, clears(x), rest));
+    set(t, "reset_args", uses(reset, "vst") ? "void *vst" : "void *vst UNUSED");
+    set(t, "reset", reset);
+    const char *sw = *cases ? format("        switch (ids[k]) {\n%s        }\n", cases) : "";
+    const char *res = x->settle ? format("settle(st, %s) == 0 ? 0 : -1", x->nreact ? "react" : "NULL") : "0";
+    const char *head = format("%s%s%s", react, dirty, kirch);
+    bool used = uses(format("%s%s%s", head, sw, res), "st");
+    set(t, "set_ic_args", format("void *vst%s, int n, const int *ids, const double *values", used ? "" : " UNUSED"));
+    set(t, "set_ic", used ? format("%s%s", st, head) : head);
+    set(t, "ic_cases", sw);
+    set(t, "ic_result", res);
+}
+
+/* energy, from the state, and work: the sum process keeps with --energy. */
+static void measure_holes(Ctx *x, Holes *t, const char *energy) {
+    set(t, "energy_args", *energy ? "const void *vst" : "const void *vst UNUSED");
+    set(t, "energy", *energy ? format("    const state *st = vst;\n    double E = 0;\n%s    return E;\n", energy)
+                             : "    return 0;\n");
+    set(t, "work", x->energy && x->nsrc ? "static double voice_work(const void *vst) { return ((const state *)vst)->s_work; }"
+                   : x->energy          ? "/* The voice has no sources: nothing does work on it. */\n"
+                                          "static double voice_work(const void *vst UNUSED) { return 0; }"
+                                        : "/* Work is counted in a voice compiled with --energy only. */\n"
+                                          "static double voice_work(const void *vst UNUSED) { return (double)NAN; }");
+}
+
+/* The holes of root.c.tmpl and settle.c.tmpl, and the elastic forces
+ * (`force`: one line per element that has one) settle asks for. */
+static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune, const char *probes, int nicv) {
+    set(t, "nl_force", *force ? format("\n/* Elastic force of nonlinear edge k at its present state (contacts,\n"
+                                       " * nonlinear inductors). */\nstatic double nl_force(const state *st, int k) {\n"
+                                       "%s    return 0;\n}\n", force)
+                              : "");
+    set(t, "nl_retune", retune);
+    set(t, "edge_R", x->nnl ? "e[0] == 0 ? st->c_R[e[3]] : st->c_Rn[e[3]]" : "st->c_R[e[3]]");
+    set(t, "nl_adapt", x->nnl ? tmpl_nl_adapt : "");
+    set(t, "nl_adapt_call", x->nnl ? "    nl_adapt(st, rb, A, x, piv);\n" : "");
+    set(t, "ic_drive", keeps_drive(x) ? "e[5] >= 0 ? st->s_e[e[5]] : 0" : "0");
+    set(t, "ic_current", *force ? "e[0] == 2 ? react[e[4]] : e[0] == 8 ? nl_force(st, e[4]) : drive"
+                                : "e[0] == 2 ? react[e[4]] : drive");
+    set(t, "ic_wave", x->c->nwgs ? "        case 9: /* a waveguide's port: the wave that last arrived behind its resistance */\n"
+                                   "            stamp(A, N_ICN, p, q, g);\n"
+                                   "            if (p >= 0) x[p] += g * (double)st->s_wpre[e[4]];\n"
+                                   "            if (q >= 0) x[q] -= g * (double)st->s_wpre[e[4]];\n"
+                                   "            break;\n"
+                                 : "");
+    set(t, "ic_store", settle_store(x, nicv, probes));
+}
+
+/* The descriptor arrays a voice has (C has no empty ones) and the class's
+ * pointers to them, NULL where there are none. */
+static void emit_descriptors(Ctx *x, const char *targets, Buf *decl, Buf *ptrs) {
+    const Circuit *c = x->c;
+    static const char *const type[] = {"wdv_port", "wdv_port", "wdv_param", "wdv_ic_target"};
+    static const char *const name[] = {"in_desc", "out_desc", "param_desc", "ic_desc"};
+    int n[] = {c->ninputs, c->nouts, c->nparams, 2 * (c->nnodes - 1)};
+    const char *init[] = {descriptors(x, 'i'), descriptors(x, 'o'), descriptors(x, 'p'), format("{%s}", targets)};
+    for (int k = 0; k < 4; k++) {
+        if (n[k])
+            emit(decl, "static const %s %s[] = %s;\n", type[k], name[k], init[k]);
+        emit(ptrs, "%s%s", k ? ", " : "", n[k] ? name[k] : "NULL");
+    }
+}
+
 int emit_voice(const Wdf *w, const EmitOpts *opt) {
-    Ctx x = {.w = w, .c = w->c, .single = opt->single, .opt = opt};
+    Ctx x = {.w = w, .c = w->c, .single = opt->single, .energy = opt->energy, .opt = opt};
     const Circuit *c = w->c;
     index_tree(&x);
-    Buf update = {0}, sample = {0}, hoist = {0}, wb = {0}, flushes = {0}, reset = {0}, probes = {0}, energy = {0},
-        kirch = {0}, targets = {0}, cases = {0};
+    x.settle = x.nreact || x.nnl || x_probes(c) || (x.energy && x.nsrc);
+    Buf update = {0}, reset = {0}, probes = {0}, energy = {0}, kirch = {0}, targets = {0}, cases = {0};
     emit_update(&x, &update);
-    for (int i = 0; i < c->ninputs; i++)
-        emit(&sample, "        const real t_in%d = (real)in%d[n];\n", i, i);
-    emit_forward(&x, &sample);
-    for (int b = 0; b < w->nroots; b++)
-        emit_root(&x, &sample, b);
-    emit_backward(&x, &sample);
-    emit_outputs(&x, &sample);
-    emit_work(&x, &sample);
-    if (x.nline || c->nwgs)
-        emit(&sample, "        t_pos++;\n");
-    emit_hoist(&x, &hoist, &wb, &flushes);
+    emit_sample(&x);
+    emit_hoist(&x);
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);
     emit_ic_cases(&x, &targets, &cases);
@@ -1374,7 +1985,9 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         emit(&wgk, "%s};\nstatic const int wg_coef[] = {", x.nwt ? "" : "{-1, -1}");
         for (int w = 0; w < c->nwgs; w++)
             emit(&wgk, "%s%d", w ? ", " : "", x.wc_off[w]);
-        emit(&wgk, "};\n%s", tmpl_waveguide_state);
+        emit(&wgk, "};\n#define N_WG %d\n#define WG_PREPARED %d\n", c->nwgs, wg_params(c) != 0);
+        emit_wg_specs(&x, &wgk);
+        emit(&wgk, "%s", tmpl_waveguide_state);
     }
     int nicv;
     const char *ictab = ic_table(&x, &nicv);
@@ -1387,36 +2000,48 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     }
     Buf rdesc = {0};
     const char *rtab = root_table(&x, &rdesc);
-    int nd = ncore > nicn ? ncore : nicn;
+    /* the solve workspace: root_solve's and, when there is one, settle's */
+    int nd = x.settle && nicn > ncore ? nicn : ncore;
     const char *real = opt->single ? "float" : "double";
-    const char *options = format("precision %s, rate %g Hz by default", real, c->rate);
+    const char *options = format("precision %s%s, rate %g Hz by default", real, x.energy ? ", energy" : "", c->rate);
     const char *summary = format("%d elements, %d nodes; %d adaptors and leaves under %d root adaptors with %d "
                                  "ports, %d nonlinear elements and %d ideal sources in all.", c->nelems, c->nnodes,
                                  w->nnodes, w->nroots, nports, x.nnl, nsrcs);
     char *guard = format("WDV_%s_H", c->name);
     for (char *g = guard; *g; g++)
         *g = (char)(*g >= 'a' && *g <= 'z' ? *g - 32 : *g);
-    Hole holes[] = {
+    Buf dtext = {0}, dptrs = {0};
+    emit_descriptors(&x, str(&targets), &dtext, &dptrs);
+    Holes t = {0};
+    const char *dirty = update_holes(&x, &t, str(&update));
+    process_holes(&x, &t, dirty);
+    reset_holes(&x, &t, dirty, str(&reset), str(&kirch), str(&cases));
+    measure_holes(&x, &t, str(&energy));
+    solve_holes(&x, &t, str(&force), str(&retune), str(&probes), nicv);
+    const Hole fixed[] = {
         {"name", c->name}, {"version", WDC_VERSION}, {"source", c->path}, {"hash", format("%08x", c->hash)},
         {"options", options}, {"summary", summary}, {"guard", guard}, {"real", real},
-        {"state_fields", state_fields(&x, nd)}, {"n_params", format("%d", c->nparams)},
-        {"n_roots", format("%d", w->nroots)}, {"n_work", format("%d", nd)}, {"root_desc", str(&rdesc)},
-        {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)},
-        {"inputs", descriptors(&x, 'i')}, {"outputs", descriptors(&x, 'o')}, {"params", descriptors(&x, 'p')},
-        {"ic_targets", format("{%s}", str(&targets))}, {"n_ic_targets", format("%d", 2 * (c->nnodes - 1))},
-        {"root_edges", rtab}, {"ic_elems", ictab}, {"update", str(&update)},
-        {"settle_probes", str(&probes)}, {"n_react_arr", format("%d", x.nreact > 0 ? x.nreact : 1)},
-        {"reset", str(&reset)}, {"energy", str(&energy)}, {"kirchhoff", str(&kirch)},
-        {"ic_cases", str(&cases)}, {"hoist", str(&hoist)}, {"sample", str(&sample)},
-        {"writeback", str(&wb)}, {"precision", opt->single ? "32" : "64"},
-        {"n_inputs", format("%d", c->ninputs)}, {"n_outputs", format("%d", c->nouts)},
-        {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"nl_retune", str(&retune)},
-        {"nl_force", str(&force)}, {"flush", str(&flushes)}, {"wg_kernels", str(&wgk)},
-        {"flush_below", opt->single ? "1e-18f" : "1e-30"},
+        {"precision", opt->single ? "32" : "64"}, {"state_fields", state_fields(&x, nd)},
+        {"n_params", format("%d", c->nparams)}, {"n_inputs", format("%d", c->ninputs)},
+        {"n_outputs", format("%d", c->nouts)}, {"n_ic_targets", format("%d", 2 * (c->nnodes - 1))},
+        {"descriptors", str(&dtext)}, {"descriptor_ptrs", str(&dptrs)}, {"root_edges", rtab},
+        {"root_desc", str(&rdesc)}, {"ic_elems", ictab}, {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)},
+        {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"wg_fields", wg_fields(c)},
+        {"design", design_entries(c)}, {"flush_below", opt->single ? "1e-18f" : "1e-30"},
     };
-    int nh = (int)(sizeof holes / sizeof holes[0]);
-    const char *ctext = fill(tmpl_voice_c, holes, nh);
-    const char *htext = fill(tmpl_voice_h, holes, nh);
+    for (int i = 0; i < (int)(sizeof fixed / sizeof fixed[0]); i++)
+        set(&t, fixed[i].name, fixed[i].text);
+    set(&t, "solve", w->nroots ? fill_with(tmpl_root, &t) : "");
+    set(&t, "settle", x.settle ? fill_with(tmpl_settle, &t) : "");
+    /* the helpers the rest of the voice names */
+    set(&t, "wg_kernels", "");
+    set(&t, "helpers", "");
+    const char *bare = fill_with(tmpl_voice_c, &t);
+    t.n -= 2;
+    set(&t, "wg_kernels", str(&wgk));
+    set(&t, "helpers", helpers(bare, str(&wgk)));
+    const char *ctext = fill_with(tmpl_voice_c, &t);
+    const char *htext = fill_with(tmpl_voice_h, &t);
     if (write_text(format("%s/%s.c", opt->outdir, c->name), ctext) ||
         write_text(format("%s/%s.h", opt->outdir, c->name), htext) ||
         write_text(format("%s/wdvoice.h", opt->outdir), tmpl_wdvoice_h))

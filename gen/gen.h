@@ -411,6 +411,9 @@ void circuit_dump(const Circuit *c, FILE *out);
 /* Chooses the order of each waveguide's allpass; errors for loops too
  * short for their filters and taps outside their waveguide. */
 void wg_choose(Circuit *c);
+/* Doubles a voice's state keeps per waveguide: the spec of the design in
+ * effect, and a design prepare made with its spec. */
+extern const int wg_nspec, wg_nrec;
 
 /* wdf.c: the adaptor tree */
 
@@ -518,6 +521,7 @@ const char *fill(const char *tmpl, const Hole *holes, int n);
 
 typedef struct EmitOpts {
     bool single;        /* float precision */
+    bool energy;        /* work accounting in process (--energy); else work() is NAN */
     Solver solver;      /* for nonlinear elements that name none */
     int table;          /* points of a diode's piecewise-linear table */
     double tol;         /* Newton: relative step tolerance */

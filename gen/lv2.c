@@ -281,7 +281,10 @@ int lv2_bundle(const Wdf *w, const EmitOpts *eo, const char *dir) {
     Hole holes[] = {
         {"name", c->name}, {"version", WDC_VERSION}, {"uri", uri}, {"classes", classes},
         {"comment", format("A wave-digital model compiled by wdc %s from %s.", WDC_VERSION, c->path)},
-        {"features", pl.instrument ? "    lv2:requiredFeature urid:map ;\n" : ""}, {"ports", ports_ttl(&pl)},
+        {"features", pl.instrument ? "    lv2:requiredFeature urid:map ;\n"
+                                      "    lv2:optionalFeature <http://lv2plug.in/ns/ext/worker#schedule> ;\n"
+                                      "    lv2:extensionData <http://lv2plug.in/ns/ext/worker#interface> ;\n"
+                                    : ""}, {"ports", ports_ttl(&pl)},
     };
     int nh = (int)(sizeof holes / sizeof holes[0]);
     if (mkdir_p(dir) != 0) {

@@ -27,7 +27,7 @@ typedef struct Opts {
     const char *inputs[16];
     int ninputs;
     double seconds, rate;
-    bool check, single, dump_elab, dump_wdf, tableau, has_outdir;
+    bool check, single, energy, dump_elab, dump_wdf, tableau, has_outdir;
     Solver solver;
     int table, maxit;
     double tol;
@@ -35,7 +35,7 @@ typedef struct Opts {
 
 static void usage(FILE *f) {
     fprintf(f,
-        "usage: wdc FILE.wdn [-o DIR] [--precision double|float]\n"
+        "usage: wdc FILE.wdn [-o DIR] [--precision double|float] [--energy]\n"
         "       wdc FILE.wdn --check\n"
         "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
         "                    [--csv OUT.csv] [--events FILE]\n"
@@ -44,6 +44,8 @@ static void usage(FILE *f) {
         "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n"
         "nonlinear elements: [--solver newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
         "SPEC: impulse[:A] | step[:A] | sine:FREQ[:A] | noise[:A] | FILE.wav (one per .input, in order)\n"
+        "--energy: the voice counts the work its sources do, sample by sample (its work()); without\n"
+        "          it process does no such accounting and work() returns NaN (energy() is always there)\n"
         "-delab, -dwdf print the elaborated circuit or the adaptor tree.\n"
         "exit status: 0 ok, 1 netlist error, 2 usage error, 3 toolchain or internal error\n");
 }
@@ -81,6 +83,7 @@ static Opts parse_args(int argc, char **argv) {
             o.has_outdir = true;
         } else if (!strcmp(a, "--lv2")) o.lv2 = TAKE();
         else if (!strcmp(a, "--check")) o.check = true;
+        else if (!strcmp(a, "--energy")) o.energy = true;
         else if (!strcmp(a, "--render")) o.render = TAKE();
         else if (!strcmp(a, "--csv")) o.csv = TAKE();
         else if (!strcmp(a, "--dot")) o.dot = TAKE();
@@ -680,8 +683,8 @@ int main(int argc, char **argv) {
     }
     if (o.check || ((o.dot || o.tableau) && !o.render))
         return 0;
-    EmitOpts eo = {.single = o.single, .outdir = o.outdir, .solver = o.solver, .table = o.table, .tol = o.tol,
-                   .maxit = o.maxit};
+    EmitOpts eo = {.single = o.single, .energy = o.energy, .outdir = o.outdir, .solver = o.solver,
+                   .table = o.table, .tol = o.tol, .maxit = o.maxit};
     if (o.lv2)
         return emit(w, &eo, o.lv2);
     /* the voice is emitted in a folder of this run's own; -o DIR (or no

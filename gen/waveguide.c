@@ -11,6 +11,8 @@
 
 #include "../templates/waveguide.c.tmpl"
 
+const int wg_nspec = WG_NSPEC, wg_nrec = WG_NREC;
+
 static double eval_or(const Expr *e, const double *p, double def) { return e ? expr_eval(e, p) : def; }
 
 /* The design input of w at params p and rate fs. */

@@ -175,7 +175,8 @@ static const wdv_port tap_out[1] = {{"out", ""}};
 static const wdv_class tap_class = {"body",    WDV_ABI_VERSION, 64,           sizeof(tap_state), 0,
                                     1,         0,               0,            NULL,              tap_out,
                                     NULL,      NULL,            tap_init,     tap_reset,         tap_set_param,
-                                    tap_get_param, tap_process, tap_energy,   tap_work,          tap_set_ic};
+                                    tap_get_param, tap_process, tap_energy,   tap_work,          tap_set_ic,
+                                    0,         NULL,            NULL};
 
 /* ---- set-up ---- */
 

@@ -34,7 +34,7 @@
 #define SEQ_MASK ((1u << SEQ_BITS) - 1)
 #define MAX_POOLS 1000
 
-enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP, EV_MOVE, EV_LISTEN };
+enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP, EV_MOVE, EV_LISTEN, EV_DESIGN };
 #define AIR_TABLE 256 /* distances the air filter is tabulated at */
 #define LISTEN_MAX 16 /* listener moves one block takes in order */
 #define IMAGE_ORDER 3 /* the highest image order the engine renders */
@@ -46,7 +46,7 @@ typedef struct ev {
     uint64_t frame;  /* absolute frame it acts at */
     uint64_t seq;    /* post order */
     int type;        /* EV_* */
-    int n;           /* EV_STRIKE: pairs; EV_SET: param; EV_PLAY: priority */
+    int n;           /* EV_STRIKE: pairs; EV_SET: param; EV_PLAY: priority; EV_DESIGN: slot */
     int pool;        /* EV_PLAY */
     int off;         /* offset in the block being rendered */
     int next;        /* next event of the same chain, or -1 */
@@ -154,6 +154,9 @@ typedef struct pool {
     double cl, cr;         /* its constant-power pan: left and right gains */
     double cost;           /* ns per sample of one voice */
     uint32_t next_seq;     /* producer: the next note's sequence number */
+    double *pparam;        /* producer: the pool's params as posted */
+    unsigned char *design; /* the design of its latest prepared params (design_size bytes) */
+    int has_design;
     int chain, tail;       /* pool-wide events in this block */
 } pool;
 
@@ -166,6 +169,13 @@ struct wdrt_engine {
     ev *q;
     uint32_t qmask, qhead, qtail;
     uint64_t seq;          /* producer: post order */
+    /* designs prepared by wdrt_engine_set_prepared: WDRT_DESIGN_SLOTS of
+     * dsize bytes, each held (dbusy, atomic) from its post by the
+     * producer to the end of the block that applies it */
+    unsigned char *dslot;
+    size_t dsize;
+    unsigned char dbusy[WDRT_DESIGN_SLOTS];
+    int dnext;             /* producer: the slot to try first */
     ev *heap;
     int nheap, cap;
     ev *blk;               /* this block's events, chained */
@@ -216,6 +226,8 @@ typedef struct layout {
     size_t fdnsize[64];
     int ntaps;             /* images per slot: 0 when no room reflects */
     uint64_t dlen, hlen;
+    size_t dsize;          /* bytes of a design slot */
+    size_t designs, pdesigns, pparams;
     size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, pwake, mix,
         obuf, zero, optr, iptr, total;
     int ninst, nparams, nin, maxout, maxin, qcap;
@@ -255,6 +267,8 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
         L->nparams += n * p->cls->n_params + p->cls->n_params;
         if (p->owned)
             L->nin += n * p->cls->n_inputs;
+        if (p->cls->prepare && up(p->cls->design_size, 64) > L->dsize)
+            L->dsize = up(p->cls->design_size, 64);
         if (p->cls->n_outputs > L->maxout)
             L->maxout = p->cls->n_outputs;
         if (p->cls->n_inputs > L->maxin)
@@ -268,6 +282,14 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(inst, sizeof(inst) * (size_t)L->ninst, 16);
     PLACE(params, sizeof(double) * (size_t)L->nparams, 16);
     PLACE(pramps, sizeof(pramp) * (size_t)L->nparams, 16);
+    size_t pd = 0, pp = 0;
+    for (int i = 0; i < c->npools; i++) {
+        pd += c->pools[i].cls->prepare ? up(c->pools[i].cls->design_size, 64) : 0;
+        pp += (size_t)c->pools[i].cls->n_params;
+    }
+    PLACE(designs, L->dsize * WDRT_DESIGN_SLOTS, 64);
+    PLACE(pdesigns, pd, 64);
+    PLACE(pparams, sizeof(double) * pp, 16);
     PLACE(inptrs, sizeof(double *) * (size_t)L->nin, 16);
     PLACE(states, states, 64);
     PLACE(q, sizeof(ev) * (size_t)L->qcap, 16);
@@ -452,6 +474,10 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
     const double **ip = (const double **)(m + L->inptrs);
     int k = 0;
     unsigned char *sm = m + L->states; /* each pool's template, then its instances */
+    unsigned char *dm = m + L->pdesigns;
+    double *pp = (double *)(m + L->pparams);
+    e->dslot = m + L->designs;
+    e->dsize = L->dsize;
     for (int i = 0; i < c->npools; i++) {
         pool *p = &e->pools[i];
         const wdv_class *cls = c->pools[i].cls;
@@ -477,6 +503,13 @@ static void init_pools(wdrt_engine *e, const wdrt_engine_config *c, unsigned cha
         settle(e, cls, p->tmpl);
         for (int j = 0; j < cls->n_params; j++)
             p->param[j] = cls->get_param(p->tmpl, j);
+        p->pparam = pp;
+        pp += cls->n_params;
+        memcpy(p->pparam, p->param, sizeof(double) * (size_t)cls->n_params);
+        if (cls->prepare) {
+            p->design = dm;
+            dm += up(cls->design_size, 64);
+        }
         p->cost = p->cfg.cost_ns;
         for (int j = 0; j < i && p->cost <= 0; j++) /* a class is measured once */
             if (e->pools[j].cfg.cls == cls && e->pools[j].cfg.cost_ns <= 0)
@@ -750,7 +783,50 @@ wdrt_result wdrt_engine_set(wdrt_engine *e, uint64_t frame, wdrt_voice v, int pa
     ev_init(&x, EV_SET, frame, v);
     x.n = param;
     x.value = value;
-    return post(e, &x);
+    wdrt_result r = post(e, &x);
+    if (r == WDRT_OK && !(v & SEQ_MASK))
+        e->pools[voice_pool(e, v)].pparam[param] = value;
+    return r;
+}
+
+wdrt_result wdrt_engine_set_prepared(wdrt_engine *e, uint64_t frame, wdrt_voice v, int n, const int *params,
+                                     const double *values) {
+    int pi = e ? voice_pool(e, v) : -1;
+    if (pi < 0 || n < 0 || n > WDRT_STRIKE_MAX || (n && (!params || !values)))
+        return WDRT_INVALID_ARGS;
+    pool *p = &e->pools[pi];
+    const wdv_class *cls = p->cfg.cls;
+    for (int k = 0; k < n; k++)
+        if (params[k] < 0 || params[k] >= cls->n_params || !isfinite(values[k]))
+            return WDRT_INVALID_ARGS;
+    uint32_t h = __atomic_load_n(&e->qhead, __ATOMIC_RELAXED);
+    uint32_t t = __atomic_load_n(&e->qtail, __ATOMIC_ACQUIRE);
+    if (h - t + (uint32_t)n + 1 > e->qmask + 1)
+        return WDRT_QUEUE_FULL;
+    int slot = -1;
+    for (int k = 0; k < WDRT_DESIGN_SLOTS && cls->prepare && slot < 0; k++) {
+        int c = (e->dnext + k) % WDRT_DESIGN_SLOTS;
+        if (!__atomic_load_n(&e->dbusy[c], __ATOMIC_ACQUIRE))
+            slot = c;
+    }
+    if (cls->prepare && slot < 0)
+        return WDRT_QUEUE_FULL;
+    for (int k = 0; k < n; k++) /* every event fits: none fails */
+        wdrt_engine_set(e, frame, v, params[k], values[k]);
+    if (!cls->prepare)
+        return WDRT_OK;
+    /* the pool's params as posted, with these values */
+    double par[64]; /* a class has at most 64 params (check_config) */
+    memcpy(par, p->pparam, sizeof(double) * (size_t)cls->n_params);
+    for (int k = 0; k < n; k++)
+        par[params[k]] = values[k];
+    cls->prepare(e->fs, par, e->dslot + (size_t)slot * e->dsize);
+    e->dnext = (slot + 1) % WDRT_DESIGN_SLOTS;
+    __atomic_store_n(&e->dbusy[slot], 1, __ATOMIC_RELAXED);
+    ev x;
+    ev_init(&x, EV_DESIGN, frame, v);
+    x.n = slot;
+    return post(e, &x); /* release: the design and its slot's flag before the event */
 }
 
 wdrt_result wdrt_engine_gain(wdrt_engine *e, uint64_t frame, wdrt_voice v, double gain) {
@@ -922,6 +998,8 @@ static void restore(wdrt_engine *e, inst *v) {
     for (int j = 0; j < cls->n_params; j++)
         if (p->param[j] != cls->get_param(p->tmpl, j))
             cls->set_param(v->st, j, p->param[j]);
+    if (p->has_design)
+        cls->install(v->st, p->design);
     for (int j = 0; j < cls->n_params; j++)
         v->pr[j].steps = v->pr[j].done = 0;
     v->nramps = 0;
@@ -1061,6 +1139,9 @@ static void apply_idle(wdrt_engine *e, int k, const ev *x, int own) {
         cls->set_param(v->st, x->n, x->value);
         v->pr[x->n].steps = v->pr[x->n].done = 0;
         break;
+    case EV_DESIGN:
+        cls->install(v->st, e->dslot + (size_t)x->n * e->dsize);
+        break;
     case EV_GAIN:
         if (x->v & SEQ_MASK)
             v->note_gain = x->value;
@@ -1111,6 +1192,10 @@ static void dispatch(wdrt_engine *e, ev *x) {
     pool *p = &e->pools[voice_pool(e, x->v)];
     if (x->type == EV_SET)
         p->param[x->n] = x->value;
+    if (x->type == EV_DESIGN) { /* notes played later start from it */
+        memcpy(p->design, e->dslot + (size_t)x->n * e->dsize, p->cfg.cls->design_size);
+        p->has_design = 1;
+    }
     if (x->type == EV_GAIN)
         p->gain = x->value;
     if (x->type == EV_MOVE)
@@ -1221,6 +1306,9 @@ static void apply_event(wdrt_engine *e, int k, const ev *x, uint64_t now) {
         apply_ramps(e, v, now);
         break;
     }
+    case EV_DESIGN:
+        cls->install(v->st, e->dslot + (size_t)x->n * e->dsize);
+        break;
     case EV_GAIN:
         if (x->v & SEQ_MASK)
             v->note_gain = x->value;
@@ -2028,6 +2116,9 @@ void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes) {
         for (int i = 0; i < e->nactive; i++)
             render_inst(e, e->active[i], t0, nb, (int)done);
         space_mix(e, t0, nb);
+        for (int i = 0; i < e->nblk; i++) /* the designs this span applied go back to the producer */
+            if (e->blk[i].type == EV_DESIGN)
+                __atomic_store_n(&e->dbusy[e->blk[i].n], 0, __ATOMIC_RELEASE);
         for (int i = 0; i < e->ntouched; i++)
             e->pools[e->touched[i]].chain = e->pools[e->touched[i]].tail = -1;
         e->ntouched = 0;

@@ -267,6 +267,21 @@ wdrt_result wdrt_engine_strike(wdrt_engine *e, uint64_t frame, wdrt_voice v,
  * pool: every voice in it and every note played from it later. */
 wdrt_result wdrt_engine_set(wdrt_engine *e, uint64_t frame, wdrt_voice v,
                             int param, double value);
+/* Sets n params (at most WDRT_STRIKE_MAX) of a voice, a note or a pool
+ * as wdrt_engine_set sets each, and makes in this call the heavy work
+ * they need (wdv_class.prepare: the design of a string's or tube's loop),
+ * which the voice takes at `frame` instead of doing it in the block that
+ * renders it.  Not real-time safe: call it from the producer thread when
+ * that thread may take milliseconds, never from the one that processes.
+ * The design is made for the pool's params as posted with these values; a
+ * voice whose own values of the params it depends on differ designs in its
+ * block, as after wdrt_engine_set.  For a voice class without prepare it
+ * is wdrt_engine_set of each.  WDRT_QUEUE_FULL (nothing posted) when the
+ * queue cannot take the n + 1 events or every one of WDRT_DESIGN_SLOTS
+ * designs is held by an event not yet rendered. */
+wdrt_result wdrt_engine_set_prepared(wdrt_engine *e, uint64_t frame, wdrt_voice v,
+                                     int n, const int *params, const double *values);
+#define WDRT_DESIGN_SLOTS 32
 /* The linear gain of a voice (or pool), ramped over one block. */
 wdrt_result wdrt_engine_gain(wdrt_engine *e, uint64_t frame, wdrt_voice v,
                              double gain);

@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 2
+#define WDV_ABI_VERSION 3
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -78,13 +78,30 @@ typedef struct wdv_class {
                     int nframes);
     /* Energy stored in the reactances now, in J (or its electrical analog). */
     double (*energy)(const void *state);
-    /* Work done on the network by its sources since reset, in J. */
+    /* Work done on the network by its sources since reset, in J.  Counted
+     * only by a voice compiled with `wdc --energy`; any other voice's
+     * process does no such accounting and this returns NaN. */
     double (*work)(const void *state);
     /* A strike: sets the named initial conditions (ids into ic_targets)
      * on top of the present state; reactances the targets do not touch keep
      * their Kirchhoff state.  Returns 0, or -1 if an id is out of range or
      * the conditions cannot all hold.  Real-time safe (bounded solve). */
     int (*set_ic)(void *state, int n, const int *ids, const double *values);
+
+    /* The heavy part of a param change (the design of a waveguide's loop
+     * takes milliseconds), for hosts that keep it off the audio thread.
+     * prepare computes, on any thread and touching no state, what the
+     * params p (n_params values, clamped as set_param clamps them) call
+     * for at rate fs, into `design` (design_size bytes).  install hands it
+     * to a state on the audio thread, in bounded time; the process call
+     * that follows the set_param calls of those values then takes it
+     * instead of designing in its first block.  Without them a change
+     * works the same, in that block.  The params it concerns carry
+     * WDV_PARAM_STEP.  design_size 0, prepare and install NULL: the voice
+     * has no such work. */
+    size_t design_size;
+    void (*prepare)(double fs, const double *params, void *design);
+    void (*install)(void *state, const void *design);
 } wdv_class;
 
 #endif

@@ -1,7 +1,8 @@
 /*
  * test_abi.c - the voice ABI as a host sees it: descriptors and units,
  * param clamping and refusal, reset re-applying .ic, set_ic as a strike on
- * a running voice, energy of a thrown mass, and the float build.
+ * a running voice, energy of a thrown mass, work counted only in a voice
+ * built with --energy (NaN without), and the float build.
  */
 #include <stdarg.h>
 #include <stddef.h>
@@ -72,7 +73,7 @@ static void test_params(void **s) {
 static void test_strike_and_reset(void **s) {
     (void)s;
     tl_voice v;
-    assert_int_equal(tl_voice_build("netlists/triangle.wdn", 0, &v), 0);
+    assert_int_equal(tl_voice_build_args("netlists/triangle.wdn", 0, tl_energy, NULL, &v), 0);
     const wdv_class *c = v.cls;
     void *st = tl_state_new(c, 48000);
     assert_true(fabs(c->energy(st) - 0.5 * 25e-3 * 0.2 * 0.2) < 1e-15); /* .ic v(m3)=0.2 */
@@ -100,11 +101,42 @@ static void test_strike_and_reset(void **s) {
     tl_voice_free(&v);
 }
 
+/* Without --energy a voice counts no work: work() is NaN, and what it
+ * renders is the same to the bit. */
+static void test_work_only_with_energy(void **s) {
+    (void)s;
+    tl_voice v[2];
+    assert_int_equal(tl_voice_build("netlists/msd.wdn", 0, &v[0]), 0);
+    assert_int_equal(tl_voice_build_args("netlists/msd.wdn", 0, tl_energy, NULL, &v[1]), 0);
+    assert_true(v[0].cls->state_size < v[1].cls->state_size);
+    void *st[2];
+    double o[2][3][64];
+    for (int k = 0; k < 2; k++) {
+        const wdv_class *c = v[k].cls;
+        st[k] = tl_state_new(c, 48000);
+        double f[64];
+        for (int n = 0; n < 64; n++)
+            f[n] = n < 8 ? 1.0 : 0.0;
+        const double *in[1] = {f};
+        double *out[3] = {o[k][0], o[k][1], o[k][2]};
+        c->process(st[k], in, out, 64);
+    }
+    assert_true(isnan(v[0].cls->work(st[0])));
+    assert_true(v[1].cls->work(st[1]) > 0);
+    assert_memory_equal(o[0], o[1], sizeof o[0]);
+    assert_true(v[0].cls->energy(st[0]) == v[1].cls->energy(st[1]));
+    for (int k = 0; k < 2; k++) {
+        tl_state_free(st[k]);
+        tl_voice_free(&v[k]);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_descriptors),
         cmocka_unit_test(test_params),
         cmocka_unit_test(test_strike_and_reset),
+        cmocka_unit_test(test_work_only_with_energy),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -2,11 +2,16 @@
  * test_emit.c - every example netlist emits a voice that is standalone,
  * portable C.
  *
- * For each netlists/ *.wdn, in double and in float precision, bin/wdc
- * writes NAME.c / NAME.h into a temporary directory, and NAME.c must
- * compile with gcc and with clang (clang is skipped with a notice only if
- * it is not installed) under -std=c99 -Wall -Wextra -pedantic -Werror -O2
- * with exit status 0 and no compiler output at all.
+ * For each netlists/ *.wdn, in double and in float precision and in
+ * double with --energy, bin/wdc writes NAME.c / NAME.h into a temporary
+ * directory, and NAME.c must compile with gcc and with clang (clang is
+ * skipped with a notice only if it is not installed) under -std=c99 -Wall
+ * -Wextra -pedantic -Werror -O2 with exit status 0 and no compiler output
+ * at all.  A voice carries only what it uses: -Wall's unused-function and
+ * unused-variable checks see all of it, since its code casts nothing to
+ * (void) to quiet them.  A float voice computes its samples in float:
+ * gcc's -Wdouble-promotion finds no float widened unseen in process or
+ * in the kernels it calls per sample.
  *
  * The emitted text is then read:
  *  - the code (comments and string literals removed) names no allocator,
@@ -450,6 +455,12 @@ static void check_emitted_text(Ctx *x) {
     x->problems += check_text(csrc, c, c_allowed);
     x->problems += check_text(hdr, h, h_allowed);
     x->problems += check_text(wdv, v, v_allowed);
+    char *code = code_only(c);
+    if (code && strstr(code, "(void)")) {
+        print_error("%s: casts to (void): a voice carries only what it uses\n", csrc);
+        x->problems++;
+    }
+    free(code);
 
     /* NAME.h declares the class, NAME.c defines it */
     char decl[256], def[256];
@@ -471,6 +482,46 @@ static void check_emitted_text(Ctx *x) {
     free(v);
 }
 
+/* The functions a float voice runs every sample: process and the
+ * kernels it calls. */
+static const char *const per_sample[] = {
+    "voice_process", "flush", "pwl_map", "diode_newton", "diode_omega", "diode_estimate", "wright_omega",
+    "diode_i", "el_solve", "el_force", "el_F", "el_mean", "cap_solve", "cap_h", "mem_g", NULL,
+};
+
+/* gcc -Wdouble-promotion on a float voice: no warning in a function
+ * that runs per sample. */
+static void check_float_promotion(Ctx *x) {
+    char csrc[1024], log[1024];
+    file_in(x, csrc, sizeof csrc, ".c");
+    snprintf(log, sizeof log, "%s/%s.promotion.log", x->dir, x->name);
+    char *argv[] = {"gcc", "-std=c99", "-O2", "-Wdouble-promotion", "-c", csrc, "-o", "/dev/null", NULL};
+    if (run_logged(argv, log) != 0) {
+        print_error("%s: gcc -Wdouble-promotion failed\n", csrc);
+        x->problems++;
+        return;
+    }
+    char *out = slurp(log);
+    const char *fn = "";
+    for (char *line = out ? strtok(out, "\n") : NULL; line; line = strtok(NULL, "\n")) {
+        if (strstr(line, "In function"))
+            fn = line;
+        if (!strstr(line, "Wdouble-promotion"))
+            continue;
+        for (int k = 0; per_sample[k]; k++) {
+            char q[64];
+            snprintf(q, sizeof q, "%s\xe2\x80\x99", per_sample[k]); /* gcc quotes it 'name' or \u2018name\u2019 */
+            char a[64];
+            snprintf(a, sizeof a, "%s'", per_sample[k]);
+            if (strstr(fn, q) || strstr(fn, a)) {
+                print_error("%s: a float widened per sample (%s): %s\n", csrc, per_sample[k], line);
+                x->problems++;
+            }
+        }
+    }
+    free(out);
+}
+
 static int have_clang = -1;
 
 static void test_netlist(void **state) {
@@ -478,10 +529,10 @@ static void test_netlist(void **state) {
     const char *wdc = getenv("WDC");
     if (!wdc || !*wdc)
         wdc = "bin/wdc";
-    static const char *const precs[] = {"double", "float"};
+    static const char *const precs[] = {"double", "float", "double"};
     int problems = 0;
     quiet = 0;
-    for (int pi = 0; pi < 2; pi++) {
+    for (int pi = 0; pi < 3; pi++) {
         Ctx x = {0};
         snprintf(x.path, sizeof x.path, "%s", netlist);
         snprintf(x.dir, sizeof x.dir, "/tmp/wdc-emit-XXXXXX");
@@ -489,10 +540,12 @@ static void test_netlist(void **state) {
             fail_msg("mkdtemp: %s", strerror(errno));
         char log[256];
         snprintf(log, sizeof log, "%s/wdc.log", x.dir);
-        char *argv[] = {(char *)wdc, (char *)netlist, "-o", x.dir, "--precision", (char *)precs[pi], NULL};
+        char *argv[] = {(char *)wdc, (char *)netlist, "-o", x.dir, "--precision", (char *)precs[pi],
+                        pi == 2 ? "--energy" : NULL, NULL};
         int st = run_logged(argv, log);
         if (st != 0) {
-            print_error("%s %s -o %s --precision %s: exit status %d\n", wdc, netlist, x.dir, precs[pi], st);
+            print_error("%s %s -o %s --precision %s%s: exit status %d\n", wdc, netlist, x.dir, precs[pi],
+                        pi == 2 ? " --energy" : "", st);
             show_log("wdc", log);
             x.problems++;
         } else {
@@ -501,14 +554,18 @@ static void test_netlist(void **state) {
                 print_error("%s: expected exactly one NAME.c in %s\n", netlist, x.dir);
                 x.problems++;
             } else {
+                const char *what = pi == 2 ? "energy" : precs[pi];
                 check_emitted_text(&x);
-                compile_and_check(&x, "gcc", precs[pi]);
+                compile_and_check(&x, "gcc", what);
                 if (have_clang)
-                    compile_and_check(&x, "clang", precs[pi]);
+                    compile_and_check(&x, "clang", what);
+                if (pi == 1)
+                    check_float_promotion(&x);
             }
         }
         if (!x.problems)
-            print_message("%-26s %-6s gcc%s: clean\n", netlist, precs[pi], have_clang ? " and clang" : "");
+            print_message("%-26s %-6s gcc%s: clean\n", netlist, pi == 2 ? "energy" : precs[pi],
+                          have_clang ? " and clang" : "");
         problems += x.problems;
         const char *keep = getenv("WDC_KEEP");
         if (keep && *keep == '1')

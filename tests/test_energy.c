@@ -135,7 +135,7 @@ static void test_netlist(void **state) {
     Circuit *c = wdc_load(path);
     assert_non_null(c);
     tl_voice v;
-    if (tl_voice_build(path, 0, &v) != 0) {
+    if (tl_voice_build_args(path, 0, tl_energy, NULL, &v) != 0) {
         tl_voice_free(&v);
         fail_msg("%s: the voice could not be built", path);
     }

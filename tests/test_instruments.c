@@ -148,7 +148,7 @@ static void play(const char *path, long nsamples) {
     Circuit *c = wdc_load(path);
     assert_non_null(c);
     tl_voice v;
-    assert_int_equal(tl_voice_build(path, 0, &v), 0);
+    assert_int_equal(tl_voice_build_args(path, 0, tl_energy, NULL, &v), 0);
     const wdv_class *cls = v.cls;
     /* strike targets: v() and x() of each contact's first node */
     int hv[16], hx[16], nh = 0;

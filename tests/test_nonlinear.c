@@ -280,15 +280,16 @@ static void make_drive(drive_kind d, double fs, long n, double *x) {
 
 typedef struct solver_case {
     const char *label;
-    const char *args[5];
+    const char *args[6];
     int table; /* pwl: table points; 0: an iterative solver */
 } solver_case;
 
+/* --energy: the passivity checks read work() */
 static const solver_case solvers[] = {
-    {"newton", {"--solver", "newton", NULL}, 0},
-    {"omega", {"--solver", "omega", NULL}, 0},
-    {"pwl 256", {"--solver", "pwl", "--table", "256", NULL}, 256},
-    {"pwl 4096", {"--solver", "pwl", "--table", "4096", NULL}, 4096},
+    {"newton", {"--solver", "newton", "--energy", NULL}, 0},
+    {"omega", {"--solver", "omega", "--energy", NULL}, 0},
+    {"pwl 256", {"--solver", "pwl", "--table", "256", "--energy", NULL}, 256},
+    {"pwl 4096", {"--solver", "pwl", "--table", "4096", "--energy", NULL}, 4096},
 };
 #define NSOLVERS ((int)(sizeof solvers / sizeof solvers[0]))
 
@@ -713,7 +714,7 @@ static void test_passivity_inputs(void **state) {
          * every solver on a copy without solver= keys */
         for (int s = -1; s < NSOLVERS; s++) {
             tl_voice v;
-            int rc = s < 0 ? tl_voice_build_args(paths[k], 0, NULL, NULL, &v)
+            int rc = s < 0 ? tl_voice_build_args(paths[k], 0, tl_energy, NULL, &v)
                            : tl_voice_build_args(var, 0, solvers[s].args, NULL, &v);
             if (rc != 0) {
                 tl_voice_free(&v);

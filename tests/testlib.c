@@ -215,6 +215,8 @@ int tl_voice_build_args(const char *netlist, int single, const char *const *extr
     return 0;
 }
 
+const char *const tl_energy[] = {"--energy", NULL};
+
 int tl_voice_build(const char *netlist, int single, tl_voice *v) {
     return tl_voice_build_args(netlist, single, NULL, NULL, v);
 }

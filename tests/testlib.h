@@ -51,6 +51,9 @@ void tl_voice_free(tl_voice *v);
  * built it. */
 #define TL_VOICE_CFLAGS "-O2 -Wall -Wextra -pedantic"
 #define TL_MAX_WDC_ARGS 16
+/* {"--energy", NULL}: the `extra` of a voice whose work() counts (without
+ * it a voice's work() is NaN). */
+extern const char *const tl_energy[];
 /* Runs `bin/wdc NETLIST -o DIR EXTRA...` (wdrt_spawn) and compiles the one
  * NAME.c it wrote into DIR/NAME.so with `cflags` (NULL: TL_VOICE_CFLAGS).
  * Returns 0, or -1 after printing what failed. */

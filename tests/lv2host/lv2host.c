@@ -3,7 +3,7 @@
  *
  *     lv2host BUNDLE URI OUT.wav [--rate HZ] [--frames N] [--blocks B,B,...]
  *             [--control SYMBOL=VALUE]... [--note FRAME:NOTE:VELOCITY]...
- *             [--off FRAME:NOTE]... [--cc FRAME:NUMBER:VALUE]...
+ *             [--off FRAME:NOTE]... [--cc FRAME:NUMBER:VALUE]... [--worker 1]
  *
  * Loads the bundle directory BUNDLE, instantiates plugin URI at HZ (default
  * 48000) with the urid:map feature, and runs it for N frames (default
@@ -14,6 +14,11 @@
  * in the block that holds it, in the order given.  Writes every audio
  * output as one channel of a 32-bit float WAV.  Exit status 0, or 1 after
  * printing what failed.
+ *
+ * --worker 1 offers the plugin a worker (work:schedule) that does the
+ * work it schedules at once, on the thread that runs it, as a host does
+ * when rendering offline; the answers go back to the plugin after the run
+ * that scheduled them, in order, then end_run.
  */
 #include <stdint.h>
 #include <stdio.h>
@@ -25,6 +30,7 @@
 #include <lv2/atom/util.h>
 #include <lv2/midi/midi.h>
 #include <lv2/urid/urid.h>
+#include <lv2/worker/worker.h>
 #include <sndfile.h>
 
 #define MAX_EVENTS 256
@@ -47,6 +53,7 @@ typedef struct Host {
     const char *csym[MAX_CONTROLS];
     float cval[MAX_CONTROLS];
     int nctl;
+    int worker;
 } Host;
 
 /* ---- urid:map: a table of the URIs seen, URID = index + 1 ---- */
@@ -64,6 +71,43 @@ static LV2_URID map_uri(LV2_URID_Map_Handle h, const char *uri) {
     uris[nuris] = malloc(strlen(uri) + 1);
     strcpy(uris[nuris], uri);
     return (LV2_URID)++nuris;
+}
+
+/* ---- the worker: work done at once, answers queued for after the run ---- */
+
+#define WORK_QUEUE 262144
+
+static const LV2_Worker_Interface *g_iface;
+static LV2_Handle g_handle;
+static unsigned char g_answers[WORK_QUEUE]; /* size (uint32_t), then the body, padded to 8 */
+static size_t g_nanswers;
+
+static LV2_Worker_Status respond(LV2_Worker_Respond_Handle h, uint32_t size, const void *data) {
+    (void)h;
+    size_t need = 8 + ((size + 7u) & ~7u);
+    if (g_nanswers + need > WORK_QUEUE)
+        return LV2_WORKER_ERR_NO_SPACE;
+    memcpy(g_answers + g_nanswers, &size, sizeof size);
+    memcpy(g_answers + g_nanswers + 8, data, size);
+    g_nanswers += need;
+    return LV2_WORKER_SUCCESS;
+}
+
+static LV2_Worker_Status schedule(LV2_Worker_Schedule_Handle h, uint32_t size, const void *data) {
+    (void)h;
+    return g_iface ? g_iface->work(g_handle, respond, NULL, size, data) : LV2_WORKER_ERR_UNKNOWN;
+}
+
+static void deliver(void) {
+    for (size_t at = 0; at < g_nanswers;) {
+        uint32_t size;
+        memcpy(&size, g_answers + at, sizeof size);
+        g_iface->work_response(g_handle, size, g_answers + at + 8);
+        at += 8 + ((size + 7u) & ~7u);
+    }
+    g_nanswers = 0;
+    if (g_iface->end_run)
+        g_iface->end_run(g_handle);
 }
 
 /* ---- arguments ---- */
@@ -114,6 +158,8 @@ static void parse(Host *h, int argc, char **argv) {
             add_event(h, f, LV2_MIDI_MSG_NOTE_OFF, x, 64);
         else if (!strcmp(a, "--cc") && sscanf(v, "%ld:%d:%d", &f, &x, &y) == 3)
             add_event(h, f, LV2_MIDI_MSG_CONTROLLER, x, y);
+        else if (!strcmp(a, "--worker"))
+            h->worker = atoi(v);
         else
             fail("bad option", a);
     }
@@ -222,6 +268,8 @@ static void run(LilvInstance *inst, const Host *h, Ports *ps, LV2_URID seq_type,
         if (ps->seq)
             fill_sequence(h, ps, t, len, seq_type, midi_type);
         lilv_instance_run(inst, (uint32_t)len);
+        if (g_iface)
+            deliver();
         t += len;
     }
 }
@@ -258,10 +306,18 @@ int main(int argc, char **argv) {
         fail("no such plugin in the bundle", argv[2]);
     LV2_URID_Map map = {NULL, map_uri};
     LV2_Feature map_feature = {LV2_URID__map, &map};
-    const LV2_Feature *features[] = {&map_feature, NULL};
+    LV2_Worker_Schedule sched = {NULL, schedule};
+    LV2_Feature work_feature = {LV2_WORKER__schedule, &sched};
+    const LV2_Feature *features[] = {&map_feature, h.worker ? &work_feature : NULL, NULL};
     LilvInstance *inst = lilv_plugin_instantiate(p, h.rate, features);
     if (!inst)
         fail("cannot instantiate", argv[2]);
+    if (h.worker) {
+        g_handle = lilv_instance_get_handle(inst);
+        g_iface = lilv_instance_get_extension_data(inst, LV2_WORKER__interface);
+        if (!g_iface)
+            fail("the plugin has no worker interface", argv[2]);
+    }
     Ports ps = {0};
     if (!setup_ports(w, p, inst, &h, &ps))
         return 1;
