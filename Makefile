@@ -110,7 +110,7 @@ build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/bodies.
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench build/bench/paramblock
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench build/bench/paramblock build/bench/compilebench
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
@@ -119,6 +119,7 @@ bench: deps
 	build/bench/treebench
 	build/bench/surfbench
 	build/bench/paramblock $(NETLISTS)
+	build/bench/compilebench
 
 build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
@@ -128,6 +129,10 @@ build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) b
 
 # What a param change costs the audio thread: inline, and with prepare off it.
 build/bench/paramblock: build/bench/paramblock.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+# Compile time against netlist size: chains, ladders and trees of 10^3 to 10^5 elements.
+build/bench/compilebench: build/bench/compilebench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 # The engine's economy: sleeping voices, a 1000-voice scene, an 88-key piano.

@@ -20,6 +20,9 @@ typedef struct BlockDef {
     const char *name;
     Line *head;   /* the .block line */
     Vec lines;    /* Line* of its body */
+    Map formals;  /* formal node name -> its index in head->args */
+    long size;    /* elements an instance adds, nested blocks expanded */
+    int sized;    /* size: 0 not yet, 1 being counted, 2 known */
 } BlockDef;
 
 /* One level of block instantiation. */
@@ -58,7 +61,12 @@ typedef struct Elab {
     Vec incstack;  /* const char* resolved paths being included */
     Vec mutators;  /* Mutator* */
     Vec wgs;       /* Waveguide* */
-    int *node_deg;
+    /* names -> indices into the vectors above */
+    Map node_ix, param_ix, input_ix, model_ix, block_ix, out_ix;
+    Map elem_ix;   /* element name -> index of the first element of that name */
+    bool elem_ix_stale; /* while mutators take elements out: search elems */
+    long nelements; /* element lines elaborated, blocks expanded */
+    IcSpec **ic_at[2]; /* node -> its .ic v(node) [0] or x(node) [1], or NULL */
     bool have_voice, have_domain, have_rate;
     SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
 } Elab;
@@ -74,18 +82,34 @@ static int find_str(Vec *v, const char *s) {
     return -1;
 }
 
-static int find_param(Elab *E, const char *s) {
-    for (int i = 0; i < E->params.len; i++)
-        if (!strcmp(((Param *)E->params.data[i])->name, s))
+static int find_param(Elab *E, const char *s) { return map_get(&E->param_ix, s); }
+
+static int find_input(Elab *E, const char *s) { return map_get(&E->input_ix, s); }
+
+/* Index of the first element named s, or -1. */
+static int elem_index(Elab *E, const char *s) {
+    if (!E->elem_ix_stale)
+        return map_get(&E->elem_ix, s);
+    for (int i = 0; i < E->elems.len; i++)
+        if (!strcmp(((Elem *)E->elems.data[i])->name, s))
             return i;
     return -1;
 }
 
 static Elem *find_elem(Elab *E, const char *s) {
-    for (int i = 0; i < E->elems.len; i++)
-        if (!strcmp(((Elem *)E->elems.data[i])->name, s))
-            return E->elems.data[i];
-    return NULL;
+    int i = elem_index(E, s);
+    return i < 0 ? NULL : E->elems.data[i];
+}
+
+/* elem_ix again from elems, the first of each name winning. */
+static void index_elems(Elab *E) {
+    E->elem_ix = (Map){0};
+    for (int i = 0; i < E->elems.len; i++) {
+        const char *name = ((Elem *)E->elems.data[i])->name;
+        if (map_get(&E->elem_ix, name) < 0)
+            map_put(&E->elem_ix, name, i);
+    }
+    E->elem_ix_stale = false;
 }
 
 static bool is_c_ident(const char *s) {
@@ -137,18 +161,19 @@ static int node_of(Elab *E, Scope *S, const char *name, SrcPos pos, bool create)
     if (is_ground(name))
         return 0;
     if (S->def) {
-        Line *h = S->def->head;
-        for (int i = 0; i < h->nargs; i++)
-            if (!strcmp(h->args[i].name, name))
-                return S->formal_node[i];
+        int i = map_get(&S->def->formals, name);
+        if (i >= 0)
+            return S->formal_node[i];
     }
     const char *full = S->prefix[0] ? format("%s%s", S->prefix, name) : name;
-    int i = find_str(&E->nodes, full);
+    int i = map_get(&E->node_ix, full);
     if (i >= 0)
         return i;
     if (!create)
         error_at(pos, "unknown node '%s'", full);
-    vec_push(&E->nodes, (void *)arena_strdup(full));
+    full = arena_strdup(full);
+    vec_push(&E->nodes, (void *)full);
+    map_put(&E->node_ix, full, E->nodes.len - 1);
     return E->nodes.len - 1;
 }
 
@@ -165,7 +190,7 @@ static Expr *lookup_name(Elab *E, Scope *S, const char *name, SrcPos pos) {
     }
     int p = find_param(E, name);
     if (p < 0) {
-        if (find_str(&E->inputs, name) >= 0)
+        if (find_input(E, name) >= 0)
             error_at(pos, "'%s' is an audio input; only params may appear in values", name);
         error_at(pos, "unknown param '%s'", name);
     }
@@ -333,13 +358,16 @@ static void collect(Elab *E, Program *prog, BlockDef *into) {
             if (cur)
                 error_at(l->pos, "'.block' inside the definition of block '%s' (blocks do not nest)",
                          cur->name);
-            for (int j = 0; j < E->blocks.len; j++)
-                if (!strcmp(((BlockDef *)E->blocks.data[j])->name, l->name))
-                    error_at(l->namepos, "duplicate block name '%s'", l->name);
+            if (map_get(&E->block_ix, l->name) >= 0)
+                error_at(l->namepos, "duplicate block name '%s'", l->name);
             cur = arena_alloc(sizeof(BlockDef));
             cur->name = l->name;
             cur->head = l;
+            for (int j = 0; j < l->nargs; j++) /* the first of a repeated name counts */
+                if (map_get(&cur->formals, l->args[j].name) < 0)
+                    map_put(&cur->formals, l->args[j].name, j);
             vec_push(&E->blocks, cur);
+            map_put(&E->block_ix, l->name, E->blocks.len - 1);
         } else if (!strcmp(l->head, ".endblock") || !strcmp(l->head, ".ends")) {
             if (!cur || cur == into)
                 error_at(l->pos, "'%s' without a matching '.block'", l->head);
@@ -414,7 +442,7 @@ static void dir_param(Elab *E, Line *l) {
         error_at(l->namepos, "param name '%s' is not an identifier", l->name);
     if (find_param(E, l->name) >= 0)
         error_at(l->namepos, "duplicate param '%s'", l->name);
-    if (find_str(&E->inputs, l->name) >= 0)
+    if (find_input(E, l->name) >= 0)
         error_at(l->namepos, "'%s' is already an input", l->name);
     Param *p = arena_alloc(sizeof(Param));
     p->name = l->name;
@@ -457,6 +485,7 @@ static void dir_param(Elab *E, Line *l) {
         error_at(v->pos, "default %g of param '%s' lies outside [%g, %g]", p->def, l->name, p->min,
                  p->max);
     vec_push(&E->params, p);
+    map_put(&E->param_ix, p->name, E->params.len - 1);
 }
 
 static void dir_simple(Elab *E, Line *l) {
@@ -496,14 +525,14 @@ static void dir_simple(Elab *E, Line *l) {
             const char *s = l->args[i].name;
             if (!is_c_ident(s))
                 error_at(l->args[i].pos, "input name '%s' is not an identifier", s);
-            if (find_str(&E->inputs, s) >= 0)
+            if (find_input(E, s) >= 0)
                 error_at(l->args[i].pos, "duplicate input '%s'", s);
             vec_push(&E->inputs, (void *)s);
+            map_put(&E->input_ix, s, E->inputs.len - 1);
         }
     } else if (!strcmp(d, ".model")) {
-        for (int i = 0; i < E->models.len; i++)
-            if (!strcmp(((Line *)E->models.data[i])->name, l->name))
-                error_at(l->namepos, "duplicate model '%s'", l->name);
+        if (map_get(&E->model_ix, l->name) >= 0)
+            error_at(l->namepos, "duplicate model '%s'", l->name);
         const char *k = l->args[0].name;
         int kind = block_by_keyword(k, (int)strlen(k));
         if (kind < 0 && strlen(k) == 1)
@@ -518,6 +547,7 @@ static void dir_simple(Elab *E, Line *l) {
                          block_desc[kind].desc);
         l->model_kind = kind;
         vec_push(&E->models, l);
+        map_put(&E->model_ix, l->name, E->models.len - 1);
     }
 }
 
@@ -549,6 +579,8 @@ static Elem *add_elem(Elab *E, Scope *S, Line *l, ElemKind k, const char *suffix
     e->pos = l->namepos;
     e->user_kind = l->kind;
     vec_push(&E->elems, e);
+    if (!E->elem_ix_stale)
+        map_put(&E->elem_ix, name, E->elems.len - 1);
     return e;
 }
 
@@ -561,7 +593,7 @@ static Expr *need_key(Elab *E, Scope *S, Line *l, const char *k) {
 
 static void set_drive(Elab *E, Scope *S, Elem *e, const Value *v) {
     if (v->kind == VAL_NAME) {
-        int in = find_str(&E->inputs, v->name);
+        int in = find_input(E, v->name);
         if (in >= 0) {
             e->input = in;
             return;
@@ -586,10 +618,10 @@ static void check_keys(Line *l) {
 static Line *find_model(Elab *E, const Value *v) {
     if (v->kind != VAL_NAME)
         error_at(v->pos, "expected a model name");
-    for (int i = 0; i < E->models.len; i++)
-        if (v->kind == VAL_NAME && !strcmp(((Line *)E->models.data[i])->name, v->name))
-            return E->models.data[i];
-    error_at(v->pos, "unknown model '%s'", v->kind == VAL_NAME ? v->name : "");
+    int i = map_get(&E->model_ix, v->name);
+    if (i >= 0)
+        return E->models.data[i];
+    error_at(v->pos, "unknown model '%s'", v->name);
 }
 
 /* model=NAME: the model's keys become defaults of the element's. */
@@ -983,6 +1015,14 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
     }
 }
 
+/* The most elements a netlist may hold once its blocks are expanded, and
+ * the deepest instances may nest.  Past either, the `use` line that would
+ * cross it is refused: a few lines can otherwise ask for more than any
+ * machine holds (a block used twice in each of 40 nested blocks is 2^40
+ * elements). */
+#define MAX_ELEMENTS 1000000
+#define MAX_BLOCK_DEPTH 64
+
 static void instantiate(Elab *E, Scope *S, Line *l);
 
 static void element(Elab *E, Scope *S, Line *l) {
@@ -991,6 +1031,9 @@ static void element(Elab *E, Scope *S, Line *l) {
         instantiate(E, S, l);
         return;
     }
+    if (E->nelements >= MAX_ELEMENTS)
+        error_at(l->namepos, "the netlist holds more than %d elements", MAX_ELEMENTS);
+    E->nelements++;
     check_keys(l);
     l = with_model(E, l);
     int nn = d->nnodes;
@@ -1133,12 +1176,74 @@ static void element(Elab *E, Scope *S, Line *l) {
                  l->args[0].name);
 }
 
+/* The block a `use` line names, or NULL. */
+static BlockDef *used_block(Elab *E, const Line *l) {
+    int i = map_get(&E->block_ix, l->args[0].name);
+    return i < 0 ? NULL : E->blocks.data[i];
+}
+
+static long add_sat(long a, long b) { return a + b > MAX_ELEMENTS ? MAX_ELEMENTS + 1 : a + b; }
+
+/* Elements an instance of def adds, nested instances expanded (past
+ * MAX_ELEMENTS: MAX_ELEMENTS + 1).  Depth-first with a stack of its own,
+ * since blocks may nest as deeply as a file is long; an unknown block or
+ * one that uses itself counts nothing here (instantiating reports it). */
+static long block_size(Elab *E, BlockDef *def) {
+    typedef struct { BlockDef *def; int line; } Frame;
+    if (def->sized == 2)
+        return def->size;
+    int cap = 16, sp = 0;
+    Frame *st = arena_alloc(sizeof(Frame) * (size_t)cap);
+    st[sp++] = (Frame){def, 0};
+    def->sized = 1;
+    while (sp) {
+        Frame *f = &st[sp - 1];
+        if (f->line == f->def->lines.len) {
+            f->def->sized = 2;
+            if (--sp)
+                st[sp - 1].def->size = add_sat(st[sp - 1].def->size, f->def->size);
+            continue;
+        }
+        Line *l = f->def->lines.data[f->line++];
+        BlockDef *d = l->kind == BK_USE ? used_block(E, l) : NULL;
+        if (l->kind < 0 || (l->kind == BK_USE && (!d || d->sized == 1)))
+            continue;
+        if (l->kind != BK_USE || d->sized == 2) {
+            f->def->size = add_sat(f->def->size, d ? d->size : 1);
+            continue;
+        }
+        if (sp == cap) {
+            Frame *g = arena_alloc(sizeof(Frame) * (size_t)(2 * cap));
+            memcpy(g, st, sizeof(Frame) * (size_t)cap);
+            st = g;
+            cap *= 2;
+        }
+        d->sized = 1;
+        st[sp++] = (Frame){d, 0};
+    }
+    return def->size;
+}
+
+/* Refuses an instance that would nest too deeply or hold too much. */
+static void check_expansion(Elab *E, Scope *S, Line *l, BlockDef *def) {
+    int depth = 0;
+    for (Scope *s = S; s; s = s->parent)
+        depth += s->def != NULL;
+    if (depth >= MAX_BLOCK_DEPTH)
+        error_at(l->args[0].pos, "instance '%s' of block '%s' nests instances more than %d deep", l->name,
+                 def->name, MAX_BLOCK_DEPTH);
+    long n = block_size(E, def);
+    if (n > MAX_ELEMENTS)
+        error_at(l->args[0].pos, "instance '%s' of block '%s' expands to more than %d elements, the most a "
+                 "netlist may hold", l->name, def->name, MAX_ELEMENTS);
+    if (E->nelements + n > MAX_ELEMENTS)
+        error_at(l->args[0].pos, "instance '%s' of block '%s' adds %ld elements to the %ld before it: more "
+                 "than the %d a netlist may hold", l->name, def->name, n, E->nelements, MAX_ELEMENTS);
+}
+
 static void instantiate(Elab *E, Scope *S, Line *l) {
     const char *bname = l->args[0].name;
-    BlockDef *def = NULL;
-    for (int i = 0; i < E->blocks.len; i++)
-        if (!strcmp(((BlockDef *)E->blocks.data[i])->name, bname))
-            def = E->blocks.data[i];
+    BlockDef *def = used_block(E, l);
     if (!def)
         error_at(l->args[0].pos, "unknown block '%s'", bname);
     for (Scope *s = S; s; s = s->parent)
@@ -1148,6 +1253,7 @@ static void instantiate(Elab *E, Scope *S, Line *l) {
     if (l->nargs - 1 != h->nargs)
         error_at(l->namepos, "block '%s' has %d node%s, instance '%s' gives %d", bname, h->nargs,
                  h->nargs == 1 ? "" : "s", l->name, l->nargs - 1);
+    check_expansion(E, S, l, def);
     Scope *in = arena_alloc(sizeof(Scope));
     in->prefix = format("%s%s.", S->prefix, l->name);
     in->def = def;
@@ -1176,6 +1282,7 @@ static void instantiate(Elab *E, Scope *S, Line *l) {
 /* Each mutator takes the nonlinear resistor across its second port, which
  * must be alone there, and becomes a nonlinear reactance at its first. */
 static void mutate(Elab *E) {
+    E->elem_ix_stale = E->mutators.len > 0; /* elements move and change names below */
     for (int k = 0; k < E->mutators.len; k++) {
         Mutator *m = E->mutators.data[k];
         int found = -1, others = 0;
@@ -1231,23 +1338,27 @@ static void mutate(Elab *E) {
         for (int k = 0; k < 2; k++)
             used[((Elem *)E->elems.data[i])->n[k]] = true;
     Vec nodes = {0};
+    E->node_ix = (Map){0};
     for (int n = 0; n < E->nodes.len; n++)
         if (used[n]) {
             map[n] = nodes.len;
             vec_push(&nodes, E->nodes.data[n]);
+            map_put(&E->node_ix, E->nodes.data[n], nodes.len - 1);
         }
     for (int i = 0; i < E->elems.len; i++)
         for (int k = 0; k < 2; k++)
             ((Elem *)E->elems.data[i])->n[k] = map[((Elem *)E->elems.data[i])->n[k]];
     E->nodes = nodes;
+    index_elems(E);
 }
 
 /* ---- probes and initial conditions ---- */
 
-static Elem *probe_elem(Elab *E, const Ref *r) {
-    Elem *e = find_elem(E, r->arg[0]);
-    if (e)
-        return e;
+/* Index of the element a probe names. */
+static int probe_elem(Elab *E, const Ref *r) {
+    int i = elem_index(E, r->arg[0]);
+    if (i >= 0)
+        return i;
     if (find_elem(E, format("%s.aw", r->arg[0])) || find_elem(E, format("%s.wb", r->arg[0])))
         error_at(r->argpos[0], "'%s' is a pot: probe one half, %s.aw or %s.wb", r->arg[0],
                  r->arg[0], r->arg[0]);
@@ -1255,9 +1366,8 @@ static Elem *probe_elem(Elab *E, const Ref *r) {
 }
 
 static void dir_output(Elab *E, Line *l) {
-    for (int i = 0; i < E->outs.len; i++)
-        if (!strcmp(((Probe *)E->outs.data[i])->name, l->name))
-            error_at(l->namepos, "duplicate output '%s'", l->name);
+    if (map_get(&E->out_ix, l->name) >= 0)
+        error_at(l->namepos, "duplicate output '%s'", l->name);
     const Ref *r = &l->refs[0];
     Probe *p = arena_alloc(sizeof(Probe));
     p->name = l->name;
@@ -1273,12 +1383,18 @@ static void dir_output(Elab *E, Line *l) {
         if (r->fn == 'f' && E->c->domain == DOM_ELECTRICAL)
             error_at(r->pos, "f() reads a force; this netlist is electrical (use i())");
         p->kind = r->fn == 'i' ? PR_I : PR_F;
-        Elem *e = probe_elem(E, r);
-        for (int i = 0; i < E->elems.len; i++)
-            if (E->elems.data[i] == e)
-                p->elem = i;
+        p->elem = probe_elem(E, r);
     }
     vec_push(&E->outs, p);
+    map_put(&E->out_ix, p->name, E->outs.len - 1);
+}
+
+/* The .ic conditions of kind fn ('v' or 'x') by node. */
+static IcSpec **ic_table(Elab *E, char fn) {
+    IcSpec ***t = &E->ic_at[fn == 'x'];
+    if (!*t)
+        *t = arena_alloc(sizeof(IcSpec *) * (size_t)E->nodes.len);
+    return *t;
 }
 
 static void dir_ic(Elab *E, Line *l) {
@@ -1298,11 +1414,10 @@ static void dir_ic(Elab *E, Line *l) {
         check_magnitude(E, ic->val, l->refvals[i].pos, format("the initial condition %c(%s)", r->fn, r->arg[0]),
                         domain_unit(E->c->domain, r->fn));
         ic->pos = r->pos;
-        for (int j = 0; j < E->ics.len; j++) {
-            IcSpec *o = E->ics.data[j];
-            if (o->fn == ic->fn && o->node == ic->node)
-                error_at(r->pos, "second initial condition for %c(%s)", r->fn, r->arg[0]);
-        }
+        IcSpec **at = ic_table(E, ic->fn);
+        if (at[ic->node])
+            error_at(r->pos, "second initial condition for %c(%s)", r->fn, r->arg[0]);
+        at[ic->node] = ic;
         vec_push(&E->ics, ic);
     }
 }
@@ -1314,14 +1429,10 @@ static void apply_ics(Elab *E) {
         Elem *e = E->elems.data[i];
         if ((e->kind != E_C && e->kind != E_L) || e->ic)
             continue;
-        char fn = e->kind == E_C ? 'v' : 'x';
+        IcSpec **at = E->ics.len ? ic_table(E, e->kind == E_C ? 'v' : 'x') : NULL;
         Expr *side[2] = {NULL, NULL};
-        for (int j = 0; j < E->ics.len; j++) {
-            IcSpec *ic = E->ics.data[j];
-            for (int k = 0; k < 2; k++)
-                if (ic->fn == fn && ic->node == e->n[k])
-                    side[k] = ic->val;
-        }
+        for (int k = 0; k < 2 && at; k++)
+            side[k] = at[e->n[k]] ? at[e->n[k]]->val : NULL;
         if (!side[0] && !side[1])
             continue;
         SrcPos pos = e->pos;
@@ -1412,6 +1523,17 @@ static void check_graph(Elab *E) {
                      c->elems[first[n]].name);
     if (deg[0] == 0)
         error_at(c->elems[0].pos, "nothing connects to ground (node 0)");
+    /* the elements at each node (CSR), then a search from ground */
+    int *start = arena_alloc(sizeof(int) * (size_t)(c->nnodes + 1));
+    int *at = arena_alloc(sizeof(int) * (size_t)(2 * c->nelems + 1));
+    for (int n = 0; n < c->nnodes; n++)
+        start[n + 1] = start[n] + deg[n];
+    int *fill = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    for (int i = 0; i < c->nelems; i++)
+        for (int k = 0; k < 2; k++) {
+            int n = c->elems[i].n[k];
+            at[start[n] + fill[n]++] = c->elems[i].n[!k];
+        }
     int *seen = arena_alloc(sizeof(int) * (size_t)c->nnodes);
     int *stack = arena_alloc(sizeof(int) * (size_t)c->nnodes);
     int sp = 0;
@@ -1419,12 +1541,11 @@ static void check_graph(Elab *E) {
     stack[sp++] = 0;
     while (sp) {
         int n = stack[--sp];
-        for (int i = 0; i < c->nelems; i++)
-            for (int k = 0; k < 2; k++)
-                if (c->elems[i].n[k] == n && !seen[c->elems[i].n[!k]]) {
-                    seen[c->elems[i].n[!k]] = 1;
-                    stack[sp++] = c->elems[i].n[!k];
-                }
+        for (int j = start[n]; j < start[n + 1]; j++)
+            if (!seen[at[j]]) {
+                seen[at[j]] = 1;
+                stack[sp++] = at[j];
+            }
     }
     for (int n = 1; n < c->nnodes; n++)
         if (!seen[n])
@@ -1476,6 +1597,7 @@ static Circuit *elaborate(SrcFile *f) {
     for (const char *p = f->text; *p; p++)
         c->hash = (c->hash ^ (unsigned char)*p) * 16777619u;
     vec_push(&E.nodes, "0");
+    map_put(&E.node_ix, "0", 0);
     char real[PATH_MAX];
     vec_push(&E.incstack, realpath(f->path, real) ? arena_strdup(real) : (char *)f->path);
     collect(&E, parse_file(f), NULL);
@@ -1508,7 +1630,6 @@ static Circuit *elaborate(SrcFile *f) {
     finish(&E);
     check_graph(&E);
     check_values(&E);
-    wg_choose(c);
     return c;
 }
 
@@ -1523,11 +1644,11 @@ static Circuit *load(SrcFile *f) {
     return c;
 }
 
-Circuit *wdc_load_string(const char *name, const char *text) {
+Circuit *wdc_elaborate_string(const char *name, const char *text) {
     return load(srcfile_new(name, arena_strdup(text)));
 }
 
-Circuit *wdc_load(const char *path) {
+Circuit *wdc_elaborate(const char *path) {
     size_t len;
     char *text = read_file(path, &len);
     if (!text) {

@@ -582,9 +582,9 @@ static void emit_forward(Ctx *x) {
 /* input j of the root: b of a port or the drive of a source */
 static const char *root_in(Ctx *x, int b, int j) {
     const RootEdge *e = &x->w->roots[b].edge[j];
-    if (e->kind == 3)
+    if (e->kind == EDGE_NL)
         return format("t_bn%d", x->nl_first[b] + j - x->w->roots[b].nport);
-    return e->kind == 0 ? x->b[e->node->id] : drive_of(x, &x->c->elems[e->elem]);
+    return e->kind == EDGE_PORT ? x->b[e->node->id] : drive_of(x, &x->c->elems[e->elem]);
 }
 
 static Solver solver_of(Ctx *x, const NlSpec *nl) {
@@ -754,7 +754,7 @@ static void emit_root(Ctx *x, int b) {
         emit_nl_solve(x, g);
     }
     for (int k = 0; k < r->nedge; k++) {
-        if (r->edge[k].kind == 3)
+        if (r->edge[k].kind == EDGE_NL)
             continue;
         Buf t = {0};
         for (int j = 0; j < r->nedge; j++) {
@@ -763,13 +763,13 @@ static void emit_root(Ctx *x, int b) {
                 emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
         }
         const char *v = t.len ? str(&t) : lit(x, 0);
-        if (r->edge[k].kind == 0) {
+        if (r->edge[k].kind == EDGE_PORT) {
             int id = r->edge[k].node->id;
             put(x, format("t_a%d", id), "        const real t_a%d = %s;\n", id, v);
             x->a[id] = format("t_a%d", id);
         } else {
             put(x, format("t_r%d_%d", b, k), "        const real t_r%d_%d = %s; /* %s of %s */\n", b, k, v,
-                r->edge[k].kind == 1 ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
+                r->edge[k].kind == EDGE_V ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
         }
     }
 }
@@ -1232,15 +1232,28 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
 static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
     const Circuit *c = x->c;
     int id = 0;
+    /* the reactances from each node to ground, in tree order */
+    int *first = arena_alloc(sizeof(int) * (size_t)(c->nnodes + 1));
+    int *next = arena_alloc(sizeof(int) * (size_t)(x->w->nnodes + 1));
+    for (int nd = 0; nd < c->nnodes; nd++)
+        first[nd] = -1;
+    for (int i = x->w->nnodes - 1; i >= 0; i--) {
+        if (x->react[i] < 0)
+            continue;
+        const Elem *e = &c->elems[x->w->nodes[i]->elem];
+        int nd = e->n[1] == 0 ? e->n[0] : e->n[0] == 0 ? e->n[1] : 0;
+        if (nd) {
+            next[i] = first[nd];
+            first[nd] = i;
+        }
+    }
     for (int nd = 1; nd < c->nnodes; nd++)
         for (int f = 0; f < 2; f++, id++) {
             char fn = f ? 'x' : 'v';
             Buf t = {0};
             emit(targets, "%s{\"%c(%s)\", \"%s\"}", id ? ", " : "", fn, c->nodes[nd], domain_unit(c->domain, fn));
-            for (int i = 0; i < x->w->nnodes; i++) {
+            for (int i = first[nd]; i >= 0; i = next[i]) {
                 const WNode *n = x->w->nodes[i];
-                if (x->react[i] < 0)
-                    continue;
                 const Elem *e = &c->elems[n->elem];
                 int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
                 if (!sg || (e->kind == E_C) != (fn == 'v'))
@@ -1391,6 +1404,28 @@ static const char *descriptors(Ctx *x, char which) {
 
 /* The edges of every root, one after the other, and per root: first
  * edge, edge count, nodal unknowns, ideal V sources, matrix offset. */
+/* The codes of the voice's tables (templates/codes.def). */
+static const struct Code {
+    const char *name, *what;
+    int value;
+} all_codes[] = {
+#define CODE(name, value, what) {#name, what, value},
+#include "../templates/codes.def"
+#undef CODE
+};
+#define NCODES ((int)(sizeof all_codes / sizeof all_codes[0]))
+
+/* The name of code `value` of a group (its prefix: "EDGE_", "IC_"...). */
+static const char *code_name(const char *group, int value) {
+    for (int i = 0; i < NCODES; i++)
+        if (!strncmp(all_codes[i].name, group, strlen(group)) && all_codes[i].value == value)
+            return all_codes[i].name;
+    unreachable();
+}
+
+static const char *edge_code(int kind) { return code_name("EDGE_", kind); }
+static const char *ic_code(int kind) { return code_name("IC_", kind); }
+
 static const char *root_table(Ctx *x, Buf *desc) {
     Buf b = {0};
     emit(&b, "{");
@@ -1400,8 +1435,8 @@ static const char *root_table(Ctx *x, Buf *desc) {
         const Root *r = &x->w->roots[rb];
         for (int k = 0; k < r->nedge; k++) {
             const RootEdge *e = &r->edge[k];
-            emit(&b, "%s{%d, %d, %d, %d}", first + k ? ", " : "", e->kind, e->p, e->q,
-                 e->kind == 0 ? e->node->id : e->kind == 3 ? x->nl_first[rb] + k - r->nport : -1);
+            emit(&b, "%s{%s, %d, %d, %d}", first + k ? ", " : "", edge_code(e->kind), e->p, e->q,
+                 e->kind == EDGE_PORT ? e->node->id : e->kind == EDGE_NL ? x->nl_first[rb] + k - r->nport : -1);
         }
         emit(desc, "%s{%d, %d, %d, %d, %d}", rb ? ", " : "", first, r->nedge, r->ncore + r->nv, r->nv, x->moff[rb]);
         first += r->nedge;
@@ -1421,22 +1456,22 @@ static const char *ic_table(Ctx *x, int *nv) {
         WNode *n = x->w->leaf_of[i];
         int kind;
         switch (e->kind) {
-        case E_R: kind = 0; break;
-        case E_C: kind = 1; break;
-        case E_L: kind = 2; break;
-        case E_V: kind = e->val ? 5 : 3; break;
-        case E_I: kind = e->val ? 6 : 4; break;
-        case E_NL: kind = e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? 8 : 7; break;
-        case E_W: kind = 0; break; /* an empty line looks like its Z0 */
-        case E_S: kind = 9; break; /* its last incoming wave behind its port resistance */
+        case E_R: kind = IC_RES; break;
+        case E_C: kind = IC_CAP; break;
+        case E_L: kind = IC_IND; break;
+        case E_V: kind = e->val ? IC_RV : IC_V; break;
+        case E_I: kind = e->val ? IC_RI : IC_I; break;
+        case E_NL: kind = e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? IC_FORCE : IC_OPEN; break;
+        case E_W: kind = IC_RES; break; /* an empty line looks like its Z0 */
+        case E_S: kind = IC_WAVE; break; /* its last incoming wave behind its port resistance */
         default: unreachable();
         }
-        *nv += kind == 1 || kind == 3;
+        *nv += kind == IC_CAP || kind == IC_V;
         int nli = -1;
         for (int k = 0; k < x->nnl; k++)
             if (nl_elem(x, k) == e)
                 nli = k;
-        emit(&b, "%s{%d, %d, %d, %d, %d, %d}", i ? ", " : "", kind, e->n[0], e->n[1], n ? n->id : -1,
+        emit(&b, "%s{%s, %d, %d, %d, %d, %d}", i ? ", " : "", ic_code(kind), e->n[0], e->n[1], n ? n->id : -1,
              e->kind == E_S ? x->sp_of[i] : n ? x->react[n->id] : nli, x->src[i]);
     }
     emit(&b, "}");
@@ -1793,18 +1828,18 @@ static const char *settle_store(Ctx *x, int nicv, const char *probes) {
                  "        int p = e[1] - 1, q = e[2] - 1;\n"
                  "        double v = ok ? (p >= 0 ? x[p] : 0) - (q >= 0 ? x[q] : 0) : 0, i = 0;\n"
                  "        double R = e[3] >= 0 ? st->c_R[e[3]] : 0;\n"
-                 "        if (e[0] == 1 || e[0] == 3)\n"
+                 "        if (e[0] == IC_CAP || e[0] == IC_V)\n"
                  "            i = ok ? x[m++] : 0;\n"
                  "        switch (e[0]) {\n"
-                 "        case 1: v = react[e[4]]; break;\n"
-                 "        case 2: i = react[e[4]]; break;\n", nicv);
+                 "        case IC_CAP: v = react[e[4]]; break;\n"
+                 "        case IC_IND: i = react[e[4]]; break;\n", nicv);
         if (work)
-            emit(&b, "        case 3: st->s_wi[e[5]] = (real)i; break;\n"
-                     "        case 5: st->s_wi[e[5]] = (real)((v - (double)st->s_e[e[5]]) / R); break;\n"
-                     "        case 4: case 6: st->s_wi[e[5]] = (real)v; break;\n");
+            emit(&b, "        case IC_V: st->s_wi[e[5]] = (real)i; break;\n"
+                     "        case IC_RV: st->s_wi[e[5]] = (real)((v - (double)st->s_e[e[5]]) / R); break;\n"
+                     "        case IC_I: case IC_RI: st->s_wi[e[5]] = (real)v; break;\n");
         emit(&b, "        }\n");
         if (x->nreact)
-            emit(&b, "        if (e[0] == 1 || e[0] == 2) {\n"
+            emit(&b, "        if (e[0] == IC_CAP || e[0] == IC_IND) {\n"
                      "            st->s_a[e[4]] = (real)(v + R * i);\n"
                      "            st->s_b[e[4]] = (real)(v - R * i);\n"
                      "        }\n");
@@ -1930,13 +1965,13 @@ static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune,
                                        "%s    return 0;\n}\n", force)
                               : "");
     set(t, "nl_retune", retune);
-    set(t, "edge_R", x->nnl ? "e[0] == 0 ? st->c_R[e[3]] : st->c_Rn[e[3]]" : "st->c_R[e[3]]");
+    set(t, "edge_R", x->nnl ? "e[0] == EDGE_PORT ? st->c_R[e[3]] : st->c_Rn[e[3]]" : "st->c_R[e[3]]");
     set(t, "nl_adapt", x->nnl ? tmpl_nl_adapt : "");
     set(t, "nl_adapt_call", x->nnl ? "    nl_adapt(st, rb, A, x, piv);\n" : "");
     set(t, "ic_drive", keeps_drive(x) ? "e[5] >= 0 ? st->s_e[e[5]] : 0" : "0");
-    set(t, "ic_current", *force ? "e[0] == 2 ? react[e[4]] : e[0] == 8 ? nl_force(st, e[4]) : drive"
-                                : "e[0] == 2 ? react[e[4]] : drive");
-    set(t, "ic_wave", x->c->nwgs ? "        case 9: /* a waveguide's port: the wave that last arrived behind its resistance */\n"
+    set(t, "ic_current", *force ? "e[0] == IC_IND ? react[e[4]] : e[0] == IC_FORCE ? nl_force(st, e[4]) : drive"
+                                : "e[0] == IC_IND ? react[e[4]] : drive");
+    set(t, "ic_wave", x->c->nwgs ? "        case IC_WAVE: /* a waveguide's port: the wave that last arrived behind its resistance */\n"
                                    "            stamp(A, N_ICN, p, q, g);\n"
                                    "            if (p >= 0) x[p] += g * (double)st->s_wpre[e[4]];\n"
                                    "            if (q >= 0) x[q] -= g * (double)st->s_wpre[e[4]];\n"
@@ -1958,6 +1993,33 @@ static void emit_descriptors(Ctx *x, const char *targets, Buf *decl, Buf *ptrs) 
             emit(decl, "static const %s %s[] = %s;\n", type[k], name[k], init[k]);
         emit(ptrs, "%s%s", k ? ", " : "", n[k] ? name[k] : "NULL");
     }
+}
+
+/* The codes of templates/codes.def that the voice's text names, as the
+ * enum the compiler has them in: each group (EDGE_, IC_, WGT_) whole, if
+ * the text names one of it. */
+static const char *codes(const char *text) {
+    static const char *const groups[] = {"EDGE_", "IC_", "WGT_"};
+    static const char *const about[] = {"what an edge of a root adaptor is (root_edge[][0])",
+                                        "how an element enters the initial-condition solve (ic_elem[][0])",
+                                        "the columns of a waveguide's row of wg_tab"};
+    Buf b = {0};
+    Names names = {0};
+    names_scan(&names, text);
+    for (int g = 0; g < 3; g++) {
+        size_t len = strlen(groups[g]);
+        bool used = false;
+        for (int i = 0; i < NCODES; i++)
+            used |= !strncmp(all_codes[i].name, groups[g], len) && names_has(&names, all_codes[i].name);
+        if (!used)
+            continue;
+        emit(&b, "/* %s */\nenum {\n", about[g]);
+        for (int i = 0; i < NCODES; i++)
+            if (!strncmp(all_codes[i].name, groups[g], len))
+                emit(&b, "    %s = %d, /* %s */\n", all_codes[i].name, all_codes[i].value, all_codes[i].what);
+        emit(&b, "};\n");
+    }
+    return str(&b);
 }
 
 int emit_voice(const Wdf *w, const EmitOpts *opt) {
@@ -2036,10 +2098,12 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     /* the helpers the rest of the voice names */
     set(&t, "wg_kernels", "");
     set(&t, "helpers", "");
+    set(&t, "codes", "");
     const char *bare = fill_with(tmpl_voice_c, &t);
-    t.n -= 2;
+    t.n -= 3;
     set(&t, "wg_kernels", str(&wgk));
     set(&t, "helpers", helpers(bare, str(&wgk)));
+    set(&t, "codes", codes(format("%s%s", bare, str(&wgk))));
     const char *ctext = fill_with(tmpl_voice_c, &t);
     const char *htext = fill_with(tmpl_voice_h, &t);
     if (write_text(format("%s/%s.c", opt->outdir, c->name), ctext) ||

@@ -8,6 +8,7 @@
  *   elab.c   lines -> Circuit: one flat graph of primitive elements in SI
  *            units (mechanical elements mapped by the mobility analogy),
  *            params, inputs, probes, initial conditions
+ *   waveguide.c  the order of each waveguide's allpass (wg_choose)
  *   wdf.c    Circuit -> Wdf: an adaptor forest, one root per biconnected
  *            block (series/parallel adaptors found by series-parallel
  *            reduction; the irreducible rest, ideal sources and the
@@ -94,6 +95,20 @@ typedef struct Vec {
 } Vec;
 void vec_push(Vec *v, void *p);
 int mkdir_p(const char *path);
+
+/* A hash map from strings to non-negative ints, arena-backed (open
+ * addressing).  Keys are not copied: each must outlive the map.  A zeroed
+ * Map is empty. */
+typedef struct Map {
+    const char **keys;
+    int *vals;
+    int cap; /* slots: 0 or a power of two */
+    int len; /* keys held */
+} Map;
+/* The value of key, or -1 if it has none. */
+int map_get(const Map *m, const char *key);
+/* Sets key's value (val >= 0), replacing any it had. */
+void map_put(Map *m, const char *key, int val);
 
 /* lex.c */
 
@@ -391,10 +406,15 @@ typedef struct Circuit {
     uint32_t hash;        /* FNV-1a of the netlist text, includes appended */
 } Circuit;
 
-/* Parses and elaborates a netlist file.  Returns NULL after printing a
+/* Parses and elaborates a netlist file (the phases before any structure:
+ * wg_choose, then wdf_build, come after).  Returns NULL after printing a
  * diagnostic if the netlist has an error. */
-Circuit *wdc_load(const char *path);
+Circuit *wdc_elaborate(const char *path);
 /* Same, from text in memory (name is used in diagnostics). */
+Circuit *wdc_elaborate_string(const char *name, const char *text);
+/* wdc_elaborate and wg_choose: a circuit ready for wdf_build, for
+ * programs that use the compiler as a library (load.c). */
+Circuit *wdc_load(const char *path);
 Circuit *wdc_load_string(const char *name, const char *text);
 /* Element values for the given params (not clamped: the voice clamps to
  * positive values at run time, the compiler checks defaults); also used by
@@ -409,7 +429,8 @@ void circuit_dump(const Circuit *c, FILE *out);
 /* waveguide.c */
 
 /* Chooses the order of each waveguide's allpass; errors for loops too
- * short for their filters and taps outside their waveguide. */
+ * short for their filters and taps outside their waveguide (unwinding
+ * through diag). */
 void wg_choose(Circuit *c);
 /* Doubles a voice's state keeps per waveguide: the spec of the design in
  * effect, and a design prepare made with its spec. */
@@ -438,10 +459,21 @@ struct WNode {
     uint64_t pmask;   /* params its port resistance depends on */
 };
 
+/* The codes of a voice's tables, shared with the voice (emit.c prints
+ * the same enum into it): kinds of root edges (EDGE_*), of elements in
+ * the initial-condition solve (IC_*), columns of a waveguide's row
+ * (WGT_*). */
+#define CODE(name, value, what) name = value,
+enum {
+#include "../templates/codes.def"
+};
+#undef CODE
+
 /* One edge of the root adaptor: a subtree's port or an ideal source. */
 typedef struct RootEdge {
-    int kind;   /* 0: port of subtree `node`, 1: ideal V source, 2: ideal I,
-                   3: nonlinear element (its port adapted to the core) */
+    int kind;   /* EDGE_PORT: port of subtree `node`, EDGE_V: ideal V
+                   source, EDGE_I: ideal I, EDGE_NL: nonlinear element
+                   (its port adapted to the core) */
     WNode *node;
     int elem;   /* sources: element index */
     int p, q;   /* core node indices (-1: the reference node) */
@@ -476,7 +508,8 @@ typedef struct Wdf {
     int nroots;
     WNode **leaf_of;   /* element index -> its leaf, NULL for root sources */
     /* Path from ground to each graph node: element indices with sign,
-     * so v(node) = sum sign * v(elem). */
+     * so v(node) = sum sign * v(elem).  Paths share storage (a node's
+     * path runs on into a child's): read pathlen[n] pairs, no more. */
     int **path;
     int *pathlen;
 } Wdf;
@@ -505,7 +538,10 @@ int scatter_tableau(const Root *r, const double *R, double *M);
 /* Prints every root's edges, tableau and solved matrix, with names. */
 void scatter_print_tableau(const Wdf *w, FILE *out);
 /* Largest losslessness error over every adaptor (|S^T G S - G| per port
- * pair over sqrt(G_i G_j)); internal error if one exceeds tol. */
+ * pair over sqrt(G_i G_j); for a series or parallel adaptor a bound on it
+ * from its closed form, in time linear in its ports); internal error if
+ * one exceeds tol or an adaptor is not adapted at its up port, or if a
+ * root's matrix does not satisfy its tableau of Kirchhoff's laws. */
 double scatter_check(const Wdf *w, double tol);
 
 /* emit.c */

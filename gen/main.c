@@ -496,14 +496,21 @@ static int make_build_dir(const char *name) {
 /* Copies FILE of the build folder into DIR through a temporary there and
  * a rename, so a reader of DIR sees the old file or the new one whole. */
 static int install(const char *dir, const char *file) {
-    size_t len;
-    char *text = read_file(format("%s/%s", build_dir, file), &len);
+    FILE *in = fopen(format("%s/%s", build_dir, file), "rb");
     char *tmp = format("%s/.%s.XXXXXX", dir, file);
-    int fd = text ? mkstemp(tmp) : -1;
-    if (fd < 0)
+    int fd = in ? mkstemp(tmp) : -1;
+    if (fd < 0) {
+        if (in)
+            fclose(in);
         return -1;
+    }
     FILE *f = fdopen(fd, "w");
-    bool ok = f && fchmod(fd, 0644) == 0 && fwrite(text, 1, len, f) == len;
+    bool ok = f && fchmod(fd, 0644) == 0;
+    char buf[65536];
+    for (size_t n; ok && (n = fread(buf, 1, sizeof buf, in)) > 0;) /* a voice of any size, a chunk at a time */
+        ok = fwrite(buf, 1, n, f) == n;
+    ok = ok && !ferror(in);
+    fclose(in);
     ok = (f ? fclose(f) == 0 : (close(fd), false)) && ok;
     if (!ok || rename(tmp, format("%s/%s", dir, file)) != 0) {
         unlink(tmp);
@@ -654,10 +661,23 @@ static int emit(Wdf *w, const EmitOpts *eo, const char *lv2) {
     return r == 0 ? 0 : EXIT_TOOL;
 }
 
+/* wg_choose, netlist errors unwinding to here: false. */
+static bool choose_orders(Circuit *c) {
+    jmp_buf jb;
+    diag.jmp = &jb;
+    if (setjmp(jb)) {
+        diag.jmp = NULL;
+        return false;
+    }
+    wg_choose(c);
+    diag.jmp = NULL;
+    return true;
+}
+
 int main(int argc, char **argv) {
     Opts o = parse_args(argc, argv);
-    Circuit *c = wdc_load(o.file);
-    if (!c)
+    Circuit *c = wdc_elaborate(o.file);
+    if (!c || !choose_orders(c))
         return EXIT_NETLIST;
     if (o.dump_elab)
         circuit_dump(c, stdout);

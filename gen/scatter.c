@@ -3,6 +3,7 @@
 #include <lapacke.h>
 #include <float.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "gen.h"
@@ -17,11 +18,11 @@ static double *core_matrix(const Root *r, const double *R, int skip, int *dim) {
     for (int k = 0; k < r->nedge; k++) {
         const RootEdge *e = &r->edge[k];
         int p = e->p, q = e->q;
-        if (e->kind == 1) {
+        if (e->kind == EDGE_V) {
             int row = nc + m++;
             if (p >= 0) { A[p * D + row] += 1; A[row * D + p] += 1; }
             if (q >= 0) { A[q * D + row] -= 1; A[row * D + q] -= 1; }
-        } else if ((e->kind == 0 || e->kind == 3) && k != skip) {
+        } else if ((e->kind == EDGE_PORT || e->kind == EDGE_NL) && k != skip) {
             double G = 1 / R[k];
             if (p >= 0) A[p * D + p] += G;
             if (q >= 0) A[q * D + q] += G;
@@ -70,11 +71,11 @@ int scatter_root(const Root *r, const double *R, double *M) {
     for (int k = 0; k < ne; k++) {
         const RootEdge *e = &r->edge[k];
         int p = e->p, q = e->q;
-        if (e->kind == 0 || e->kind == 3) {
+        if (e->kind == EDGE_PORT || e->kind == EDGE_NL) {
             double G = 1 / R[k];
             if (p >= 0) BT(p, k) += G;
             if (q >= 0) BT(q, k) -= G;
-        } else if (e->kind == 1) {
+        } else if (e->kind == EDGE_V) {
             BT(nc + m++, k) = 1;
         } else {
             if (p >= 0) BT(p, k) -= 1;
@@ -89,79 +90,123 @@ int scatter_root(const Root *r, const double *R, double *M) {
         for (int j = 0; j < ne; j++) {
             double vp = e->p >= 0 ? BT(e->p, j) : 0, vq = e->q >= 0 ? BT(e->q, j) : 0;
             double out;
-            if (e->kind == 0 || e->kind == 3)
+            if (e->kind == EDGE_PORT || e->kind == EDGE_NL)
                 out = 2 * (vp - vq) - (j == k);
-            else if (e->kind == 1)
+            else if (e->kind == EDGE_V)
                 out = BT(nc + m, j);
             else
                 out = vp - vq;
             M[k * ne + j] = out;
         }
-        if (e->kind == 1)
+        if (e->kind == EDGE_V)
             m++;
     }
 #undef BT
     return 0;
 }
 
-void scatter_node(const WNode *n, double *S) {
+/* A series or parallel adaptor's scattering matrix is a rank-one change
+ * of a reflection, S = sigma I + u v^T (ports: up port first, then the
+ * children; s_k their polarities, s_0 = 1):
+ *   series:   S_kj = d_kj - 2 s_k s_j R_k / sum R:  sigma = 1,  u_k = -2 s_k R_k / sum R,  v_j = s_j
+ *   parallel: S_kj = 2 s_k s_j G_j / sum G - d_kj:  sigma = -1, u_k = 2 s_k / sum G,  v_j = s_j G_j
+ * with G = 1/R.  Sets u, v and R (n->nchild + 1 each) and returns sigma. */
+static double node_factors(const WNode *n, double *u, double *v, double *R) {
     int np = n->nchild + 1;
-    double R[np];
-    int s[np];
+    bool series = n->kind == W_SERIES;
     R[0] = n->R;
-    s[0] = 1;
-    for (int i = 0; i < n->nchild; i++) {
+    for (int i = 0; i < n->nchild; i++)
         R[i + 1] = n->child[i]->R;
-        s[i + 1] = n->pol[i];
-    }
     double tot = 0;
     for (int i = 0; i < np; i++)
-        tot += n->kind == W_SERIES ? R[i] : 1 / R[i];
+        tot += series ? R[i] : 1 / R[i];
+    for (int k = 0; k < np; k++) {
+        double s = k ? n->pol[k - 1] : 1;
+        u[k] = series ? -2 * s * R[k] / tot : 2 * s / tot;
+        v[k] = series ? s : s / R[k];
+    }
+    return series ? 1 : -1;
+}
+
+void scatter_node(const WNode *n, double *S) {
+    int np = n->nchild + 1;
+    double *u = arena_alloc(sizeof(double) * 3 * (size_t)np), *v = u + np, *R = v + np;
+    double sigma = node_factors(n, u, v, R);
     for (int k = 0; k < np; k++)
-        for (int j = 0; j < np; j++) {
-            double d = k == j;
-            S[k * np + j] = n->kind == W_SERIES ? d - 2 * s[k] * s[j] * R[k] / tot
-                                                : 2 * s[k] * s[j] / R[j] / tot - d;
-        }
+        for (int j = 0; j < np; j++)
+            S[k * np + j] = (k == j ? sigma : 0) + u[k] * v[j];
 }
 
 /* max |S^T G S - G|_ij / sqrt(G_i G_j) for an n-port with port
  * resistances R: unchanged by scaling all resistances, and an error at a
- * small conductance is not hidden by a large one. */
+ * small conductance is not hidden by a large one.  S^T G S is symmetric:
+ * its upper triangle is summed row of S by row of S, so that every pass
+ * reads memory in order. */
 static double lossless_err(const double *S, const double *R, int n) {
+    double *A = arena_alloc(sizeof(double) * (size_t)n * (size_t)n); /* S^T G S */
+    for (int k = 0; k < n; k++) {
+        const double *restrict row = S + (size_t)k * (size_t)n;
+        for (int i = 0; i < n; i++) {
+            double x = row[i] / R[k];
+            double *restrict a = A + (size_t)i * (size_t)n;
+            for (int j = i; j < n; j++)
+                a[j] += x * row[j];
+        }
+    }
     double err = 0;
     for (int i = 0; i < n; i++)
-        for (int j = 0; j < n; j++) {
-            double acc = 0;
-            for (int k = 0; k < n; k++)
-                acc += S[k * n + i] * S[k * n + j] / R[k];
-            err = fmax(err, fabs(acc - (i == j) / R[i]) * sqrt(R[i] * R[j]));
-        }
+        for (int j = i; j < n; j++)
+            err = fmax(err, fabs(A[(size_t)i * (size_t)n + j] - (i == j) / R[i]) * sqrt(R[i] * R[j]));
     return err;
+}
+
+/* The same measure for S = sigma I + u v^T in O(n).  With G = diag(1/R),
+ * w = G u and kappa = u^T G u,
+ *   S^T G S - G = (sigma^2 - 1) G + sigma (v w^T + w v^T) + kappa v v^T;
+ * scaled entry by entry (x~_i = x_i sqrt(R_i)) and with w~ = lambda v~ + r
+ * (r orthogonal to v~), its entries are at most
+ *   |sigma^2 - 1| + |2 sigma lambda + kappa| max v~_i^2 + 2 |sigma| max |v~_i| max |r_i|,
+ * the bound returned: the error itself when r = 0, as for a true series
+ * or parallel adaptor, and never less than it. */
+static double lossless_err_rank1(double sigma, const double *u, const double *v, const double *R, int n) {
+    double vw = 0, vv = 0, kappa = 0, vmax = 0;
+    for (int i = 0; i < n; i++) {
+        double vt = v[i] * sqrt(R[i]), wt = u[i] / sqrt(R[i]);
+        vw += vt * wt;
+        vv += vt * vt;
+        kappa += u[i] * u[i] / R[i];
+        vmax = fmax(vmax, fabs(vt));
+    }
+    double lambda = vv > 0 ? vw / vv : 0, rmax = 0;
+    for (int i = 0; i < n; i++)
+        rmax = fmax(rmax, fabs(u[i] / sqrt(R[i]) - lambda * v[i] * sqrt(R[i])));
+    return fabs(sigma * sigma - 1) + fabs(2 * sigma * lambda + kappa) * vmax * vmax + 2 * fabs(sigma) * vmax * rmax;
 }
 
 static double root_check(const Root *r, double tol);
 
 double scatter_check(const Wdf *w, double tol) {
     double worst = 0;
+    int cap = 0;
+    double *u = NULL;
     for (int i = 0; i < w->nnodes; i++) {
         const WNode *n = w->nodes[i];
         if (n->kind == W_LEAF)
             continue;
         int np = n->nchild + 1;
-        double *S = arena_alloc(sizeof(double) * (size_t)(np * np));
-        double *R = arena_alloc(sizeof(double) * (size_t)np);
-        scatter_node(n, S);
-        R[0] = n->R;
-        for (int k = 0; k < n->nchild; k++)
-            R[k + 1] = n->child[k]->R;
-        double err = lossless_err(S, R, np);
-        if (err > tol)
+        if (np > cap) {
+            cap = 2 * np;
+            u = arena_alloc(sizeof(double) * 3 * (size_t)cap);
+        }
+        double *v = u + np, *R = v + np;
+        double sigma = node_factors(n, u, v, R);
+        double err = lossless_err_rank1(sigma, u, v, R, np), s00 = sigma + u[0] * v[0];
+        if (!(err <= tol))
             die("%s adaptor %d is not lossless (error %g)", n->kind == W_SERIES ? "series" : "parallel",
                 n->id, err);
-        if (fabs(S[0]) > tol)
+        if (!(fabs(s00) <= tol))
             die("%s adaptor %d is not adapted at its up port (S00 = %g)",
-                n->kind == W_SERIES ? "series" : "parallel", n->id, S[0]);
+                n->kind == W_SERIES ? "series" : "parallel", n->id, s00);
         worst = fmax(worst, err);
     }
     for (int b = 0; b < w->nroots; b++)
@@ -169,16 +214,13 @@ double scatter_check(const Wdf *w, double tol) {
     return worst;
 }
 
+static double tableau_residual(const Root *r, const double *M);
+
 static double root_check(const Root *r, double tol) {
     int np = r->nport + r->nnl, ne = r->nedge;
-    double *Mt = arena_alloc(sizeof(double) * (size_t)(ne * ne));
-    if (scatter_tableau(r, r->R, Mt) != 0)
-        die("the root's tableau is singular where its nodal equations are not");
-    double diff = 0, scale = 0;
-    for (int i = 0; i < ne * ne; i++) {
-        diff = fmax(diff, fabs(Mt[i] - r->M[i]));
+    double scale = 0;
+    for (int i = 0; i < ne * ne; i++)
         scale = fmax(scale, fabs(r->M[i]));
-    }
     double *S = arena_alloc(sizeof(double) * (size_t)(np * np + 1));
     for (int k = 0; k < np; k++)
         for (int j = 0; j < np; j++)
@@ -188,10 +230,11 @@ static double root_check(const Root *r, double tol) {
         lo = fmin(lo, r->R[k]), hi = fmax(hi, r->R[k]);
     /* the nodal solve loses digits with the spread of port resistances */
     double bound = fmax(tol, 64 * DBL_EPSILON * hi / lo);
-    if (err > bound)
+    if (!(err <= bound))
         die("root adaptor is not lossless (error %g)", err);
-    if (diff > bound * fmax(scale, 1) * 1e3)
-        die("the root's tableau and nodal solutions differ by %g", diff);
+    double res = tableau_residual(r, r->M);
+    if (!(res <= bound * fmax(scale, 1) * 1e3))
+        die("the root's matrix does not satisfy its tableau of Kirchhoff's laws (residual %g)", res);
     for (int k = r->nport; k < np; k++)
         if (fabs(S[k * np + k]) > tol)
             die("nonlinear edge %d of the root is not adapted (S = %g)", k, S[k * np + k]);
@@ -276,11 +319,11 @@ static Tableau tableau(const Root *r, const double *R) {
     /* edge k's current and voltage as (coefficient on unknown k, on known k) */
     for (int k = 0; k < ne; k++) {
         const RootEdge *e = &r->edge[k];
-        bool port = e->kind == 0 || e->kind == 3;
-        double iu = port ? 1 / (2 * R[k]) : e->kind == 1 ? 1 : 0;  /* i = iu*x_k + ik*known_k */
-        double ik = port ? -1 / (2 * R[k]) : e->kind == 2 ? 1 : 0;
-        double vu = port ? 0.5 : e->kind == 2 ? 1 : 0;
-        double vk = port ? 0.5 : e->kind == 1 ? 1 : 0;
+        bool port = e->kind == EDGE_PORT || e->kind == EDGE_NL;
+        double iu = port ? 1 / (2 * R[k]) : e->kind == EDGE_V ? 1 : 0;  /* i = iu*x_k + ik*known_k */
+        double ik = port ? -1 / (2 * R[k]) : e->kind == EDGE_I ? 1 : 0;
+        double vu = port ? 0.5 : e->kind == EDGE_I ? 1 : 0;
+        double vk = port ? 0.5 : e->kind == EDGE_V ? 1 : 0;
         for (int n = 0; n < r->ncore; n++) { /* KCL: current leaving node n */
             double s = (e->p == n) - (e->q == n);
             t.T[n * ne + k] += s * iu;
@@ -317,14 +360,82 @@ int scatter_tableau(const Root *r, const double *R, double *M) {
     return solve(A, ne, M, ne);
 }
 
-static const char *edge_label(const Circuit *c, const WNode *n) {
-    if (n->kind == W_LEAF)
-        return c->elems[n->elem].name;
-    const char *s = "(";
-    for (int i = 0; i < n->nchild; i++)
-        s = format("%s%s%s%s", s, i ? (n->kind == W_SERIES ? " + " : " | ") : "", n->pol[i] < 0 ? "-" : "",
-                   edge_label(c, n->child[i]));
-    return format("%s)", s);
+/* The subtree under top as an expression, "(R1 + -(C1 | R2))": written
+ * into one stream without recursion (trees are as deep as ladders long). */
+/* How far M is from solving the root's tableau, T M = U: the largest
+ * |(T M - U)_ij| over the sum of |T_ik| along row i, which bounds the
+ * error of M's entries that the residual shows.  Each row costs its
+ * nonzeros (a KCL row: the edges at a node; a KVL row: a loop) times the
+ * edges, where solving the tableau again would cost the edges cubed. */
+static double tableau_residual(const Root *r, const double *M) {
+    Tableau t = tableau(r, r->R);
+    int ne = t.n;
+    int *nz = arena_alloc(sizeof(int) * (size_t)(ne + 1));
+    double *acc = arena_alloc(sizeof(double) * (size_t)(ne + 1)), worst = 0;
+    for (int i = 0; i < ne; i++) {
+        const double *T = t.T + (size_t)i * (size_t)ne, *U = t.U + (size_t)i * (size_t)ne;
+        double norm = 0;
+        int n = 0;
+        for (int k = 0; k < ne; k++)
+            if (T[k] != 0) {
+                nz[n++] = k;
+                norm += fabs(T[k]);
+            }
+        for (int j = 0; j < ne; j++)
+            acc[j] = -U[j];
+        for (int m = 0; m < n; m++) {
+            const double x = T[nz[m]], *row = M + (size_t)nz[m] * (size_t)ne;
+            for (int j = 0; j < ne; j++)
+                acc[j] += x * row[j];
+        }
+        for (int j = 0; j < ne; j++)
+            worst = fmax(worst, fabs(acc[j]) / (norm > 0 ? norm : 1));
+    }
+    return worst;
+}
+
+static const char *edge_label(const Circuit *c, const WNode *top) {
+    typedef struct { const WNode *n; int next; } Frame; /* next: child to write, -1 before '(' */
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        die("out of memory");
+    int cap = 16, sp = 0;
+    Frame *st = arena_alloc(sizeof(Frame) * (size_t)cap);
+    st[sp++] = (Frame){top, -1};
+    while (sp) {
+        Frame *t = &st[sp - 1];
+        const WNode *n = t->n;
+        if (n->kind == W_LEAF) {
+            fputs(c->elems[n->elem].name, f);
+            sp--;
+            continue;
+        }
+        if (t->next < 0) {
+            fputc('(', f);
+            t->next = 0;
+        }
+        if (t->next == n->nchild) {
+            fputc(')', f);
+            sp--;
+            continue;
+        }
+        int i = t->next++;
+        fprintf(f, "%s%s", i ? (n->kind == W_SERIES ? " + " : " | ") : "", n->pol[i] < 0 ? "-" : "");
+        if (sp == cap) {
+            Frame *g = arena_alloc(sizeof(Frame) * (size_t)(2 * cap));
+            memcpy(g, st, sizeof(Frame) * (size_t)cap);
+            st = g;
+            cap *= 2;
+        }
+        st[sp++] = (Frame){n->child[i], -1};
+    }
+    if (fclose(f) != 0 || !buf)
+        die("out of memory");
+    const char *s = arena_strndup(buf, len);
+    free(buf);
+    return s;
 }
 
 void scatter_print_tableau(const Wdf *w, FILE *out) {
@@ -339,14 +450,14 @@ void scatter_print_tableau(const Wdf *w, FILE *out) {
                 c->nodes[r->ref_node]);
         for (int k = 0; k < ne; k++) {
             const RootEdge *e = &r->edge[k];
-            name[k] = e->kind == 0 ? edge_label(c, e->node) : c->elems[e->elem].name;
+            name[k] = e->kind == EDGE_PORT ? edge_label(c, e->node) : c->elems[e->elem].name;
             const char *pn = e->p >= 0 ? c->nodes[r->core_node[e->p]] : c->nodes[r->ref_node];
             const char *qn = e->q >= 0 ? c->nodes[r->core_node[e->q]] : c->nodes[r->ref_node];
-            bool port = e->kind == 0 || e->kind == 3;
-            unk[k] = format(port ? "a%d" : e->kind == 1 ? "i%d" : "v%d", k);
-            kn[k] = format(port ? "b%d" : e->kind == 1 ? "e%d" : "j%d", k);
+            bool port = e->kind == EDGE_PORT || e->kind == EDGE_NL;
+            unk[k] = format(port ? "a%d" : e->kind == EDGE_V ? "i%d" : "v%d", k);
+            kn[k] = format(port ? "b%d" : e->kind == EDGE_V ? "e%d" : "j%d", k);
             fprintf(out, "  edge %d: %s, %s -> %s, %s%s\n", k, name[k], pn, qn,
-                    e->kind == 0 ? "port" : e->kind == 1 ? "ideal V" : e->kind == 2 ? "ideal I" : "nonlinear, port",
+                    e->kind == EDGE_PORT ? "port" : e->kind == EDGE_V ? "ideal V" : e->kind == EDGE_I ? "ideal I" : "nonlinear, port",
                     port ? format(" R = %.6g", r->R[k]) : "");
         }
         Tableau t = tableau(r, r->R);

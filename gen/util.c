@@ -105,6 +105,50 @@ void vec_push(Vec *v, void *p) {
     v->data[v->len++] = p;
 }
 
+static uint32_t str_hash(const char *s) {
+    uint32_t h = 2166136261u; /* FNV-1a */
+    for (; *s; s++)
+        h = (h ^ (unsigned char)*s) * 16777619u;
+    return h;
+}
+
+/* The slot that holds key, or the empty slot where it would go. */
+static int map_slot(const Map *m, const char *key) {
+    unsigned mask = (unsigned)m->cap - 1, i = str_hash(key) & mask;
+    while (m->keys[i] && strcmp(m->keys[i], key))
+        i = (i + 1) & mask;
+    return (int)i;
+}
+
+int map_get(const Map *m, const char *key) {
+    if (!m->cap)
+        return -1;
+    int i = map_slot(m, key);
+    return m->keys[i] ? m->vals[i] : -1;
+}
+
+void map_put(Map *m, const char *key, int val) {
+    if (2 * (m->len + 1) > m->cap) { /* at most half full */
+        Map g = {.cap = m->cap ? 2 * m->cap : 16};
+        g.keys = arena_alloc(sizeof(char *) * (size_t)g.cap);
+        g.vals = arena_alloc(sizeof(int) * (size_t)g.cap);
+        for (int i = 0; i < m->cap; i++)
+            if (m->keys[i]) {
+                int j = map_slot(&g, m->keys[i]);
+                g.keys[j] = m->keys[i];
+                g.vals[j] = m->vals[i];
+            }
+        g.len = m->len;
+        *m = g;
+    }
+    int i = map_slot(m, key);
+    if (!m->keys[i]) {
+        m->keys[i] = key;
+        m->len++;
+    }
+    m->vals[i] = val;
+}
+
 /* Prints "path:line:col: KIND: message", the source line and a caret. */
 static void vreport(SrcPos pos, const char *kind, const char *fmt, va_list ap) {
     FILE *out = diag.out ? diag.out : stderr;

@@ -15,6 +15,7 @@
  * is the block's core: one rigid root adaptor whose matrix is solved from
  * the core's nodal equations (scatter.c). */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "gen.h"
@@ -29,6 +30,11 @@ typedef struct Edge {
 /* Ideal sources and nonlinear elements cannot be adapted: they go to the
  * root. */
 static bool at_root(const Elem *e) { return ((e->kind == E_V || e->kind == E_I) && !e->val) || e->kind == E_NL; }
+
+static int cmp_int(const void *a, const void *b) {
+    int x = *(const int *)a, y = *(const int *)b;
+    return (x > y) - (x < y);
+}
 
 static double leaf_R(const Circuit *c, const Elem *e, const double *p, double fs) {
     double v = elem_value(c, e, p);
@@ -48,96 +54,291 @@ static WNode *new_node(WKind k, int u, int w) {
     return n;
 }
 
-/* Adds child c with polarity pol to adaptor a, flattening a child of the
- * same kind into a. */
-static void add_child(WNode *a, WNode *c, int pol, int *cap) {
-    if (c->kind == a->kind) {
-        for (int i = 0; i < c->nchild; i++)
-            add_child(a, c->child[i], pol * c->pol[i], cap);
-        return;
-    }
-    if (a->nchild == *cap) {
-        *cap = *cap ? 2 * *cap : 4;
-        WNode **ch = arena_alloc(sizeof(WNode *) * (size_t)*cap);
-        int *po = arena_alloc(sizeof(int) * (size_t)*cap);
-        if (a->nchild) {
-            memcpy(ch, a->child, sizeof(WNode *) * (size_t)a->nchild);
-            memcpy(po, a->pol, sizeof(int) * (size_t)a->nchild);
-        }
-        a->child = ch;
-        a->pol = po;
-    }
-    a->child[a->nchild] = c;
-    a->pol[a->nchild++] = pol;
-    c->parent = a;
-}
-
+/* An adaptor joining two edges' subtrees with polarities p1, p2, as the
+ * reduction finds it: just those two children.  A child of its own kind
+ * is flattened into it, and its port resistance set, once the block is
+ * reduced (finish_tree): flattening at every merge would copy a chain's
+ * children at each step. */
 static WNode *combine(WKind k, Edge *e1, int p1, Edge *e2, int p2, int u, int w) {
     WNode *n = new_node(k, u, w);
-    int cap = 0;
-    add_child(n, e1->node, p1, &cap);
-    add_child(n, e2->node, p2, &cap);
-    double s = 0;
-    for (int i = 0; i < n->nchild; i++) {
-        s += k == W_SERIES ? n->child[i]->R : 1 / n->child[i]->R;
-        n->pmask |= n->child[i]->pmask;
-    }
-    n->R = k == W_SERIES ? s : 1 / s;
+    n->nchild = 2;
+    n->child = arena_alloc(sizeof(WNode *) * 2);
+    n->pol = arena_alloc(sizeof(int) * 2);
+    n->child[0] = e1->node;
+    n->pol[0] = p1;
+    n->child[1] = e2->node;
+    n->pol[1] = p2;
     return n;
 }
 
-/* One parallel merge; returns true if it found one. */
-static bool reduce_parallel(Edge *E, int ne) {
-    for (int i = 0; i < ne; i++) {
-        if (!E[i].alive || !E[i].node)
+/* A growable stack of subtrees with polarities. */
+typedef struct Item {
+    WNode *n;
+    int pol;
+} Item;
+
+typedef struct Items {
+    Item *v;
+    int len, cap;
+} Items;
+
+static void items_push(Items *s, WNode *n, int pol) {
+    if (s->len == s->cap) {
+        s->cap = s->cap ? 2 * s->cap : 16;
+        Item *v = arena_alloc(sizeof(Item) * (size_t)s->cap);
+        if (s->len)
+            memcpy(v, s->v, sizeof(Item) * (size_t)s->len);
+        s->v = v;
+    }
+    s->v[s->len++] = (Item){n, pol};
+}
+
+/* Gives adaptor n its final children: each child of n's kind is replaced
+ * by its own children, in order, their polarities times its own, so a
+ * chain of series (or parallel) connections is one n-port adaptor. */
+static void flatten(WNode *n, Items *stack, Items *out) {
+    stack->len = out->len = 0;
+    for (int i = n->nchild - 1; i >= 0; i--)
+        items_push(stack, n->child[i], n->pol[i]);
+    while (stack->len) {
+        Item it = stack->v[--stack->len];
+        if (it.n->kind != n->kind) {
+            items_push(out, it.n, it.pol);
             continue;
-        for (int j = i + 1; j < ne; j++) {
-            if (!E[j].alive || !E[j].node)
-                continue;
-            bool same = E[i].u == E[j].u && E[i].w == E[j].w;
-            bool rev = E[i].u == E[j].w && E[i].w == E[j].u;
-            if (!same && !rev)
-                continue;
-            E[i].node = combine(W_PARALLEL, &E[i], 1, &E[j], same ? 1 : -1, E[i].u, E[i].w);
-            E[j].alive = false;
-            return true;
+        }
+        for (int i = it.n->nchild - 1; i >= 0; i--)
+            items_push(stack, it.n->child[i], it.pol * it.n->pol[i]);
+    }
+    n->nchild = out->len;
+    n->child = arena_alloc(sizeof(WNode *) * (size_t)out->len);
+    n->pol = arena_alloc(sizeof(int) * (size_t)out->len);
+    for (int i = 0; i < out->len; i++) {
+        n->child[i] = out->v[i].n;
+        n->pol[i] = out->v[i].pol;
+        out->v[i].n->parent = n;
+    }
+}
+
+/* Flattens the adaptors of the subtree under top (made by combine), then
+ * sets their port resistances, children before parents: a series
+ * adaptor's is the sum of its children's, a parallel adaptor's the
+ * inverse of the sum of their conductances.  No recursion: a ladder's
+ * tree is as deep as the ladder is long. */
+static void finish_tree(WNode *top) {
+    Items todo = {0}, stack = {0}, out = {0}, order = {0};
+    items_push(&todo, top, 1);
+    while (todo.len) {
+        WNode *n = todo.v[--todo.len].n;
+        if (n->kind == W_LEAF)
+            continue;
+        items_push(&order, n, 1);
+        flatten(n, &stack, &out);
+        for (int i = n->nchild - 1; i >= 0; i--)
+            items_push(&todo, n->child[i], 1);
+    }
+    for (int k = order.len - 1; k >= 0; k--) {
+        WNode *n = order.v[k].n;
+        double s = 0;
+        for (int i = 0; i < n->nchild; i++) {
+            s += n->kind == W_SERIES ? n->child[i]->R : 1 / n->child[i]->R;
+            n->pmask |= n->child[i]->pmask;
+        }
+        n->R = n->kind == W_SERIES ? s : 1 / s;
+    }
+}
+
+/* ---- series-parallel reduction of one block ----
+ *
+ * The rule: merge the first parallel pair (edges i < j between the same
+ * two nodes, both adaptable; lowest i, then lowest j) while there is one,
+ * else the two edges at the lowest node that has exactly two, both
+ * adaptable (the lower-numbered edge keeps the merge); repeat until
+ * neither applies.  The order decides each adaptor's children and their
+ * order, so it is kept exactly, without rescanning the block for each
+ * merge: after the first round of parallel merges every pair of nodes is
+ * joined by at most one adaptable edge, a new pair can only form where a
+ * series merge has just put its edge, and a node only becomes a series
+ * candidate when a parallel merge lowers its degree to two.  Edges by
+ * their two nodes sit in a hash table, candidate nodes in a heap. */
+
+typedef struct Reduce {
+    Edge *E;           /* the block's edges, in element order */
+    int ne;
+    const int *loc;    /* graph node -> local node of the block */
+    int nl;            /* local nodes, numbered in graph order */
+    int *deg;          /* local node -> alive edges at it */
+    int **adj;         /* local node -> edges that reach or reached it */
+    int *nadj, *cadj;
+    uint64_t *key;     /* hash table: node pair -> its adaptable edge */
+    int *val;          /* -1: none */
+    unsigned mask;
+    int *heap;         /* local nodes that may have two edges */
+    int nheap;
+} Reduce;
+
+static void adj_push(Reduce *R, int v, int e) {
+    if (R->nadj[v] == R->cadj[v]) {
+        int cap = R->cadj[v] ? 2 * R->cadj[v] : 4;
+        int *a = arena_alloc(sizeof(int) * (size_t)cap);
+        if (R->nadj[v])
+            memcpy(a, R->adj[v], sizeof(int) * (size_t)R->nadj[v]);
+        R->adj[v] = a;
+        R->cadj[v] = cap;
+    }
+    R->adj[v][R->nadj[v]++] = e;
+}
+
+/* The slot of the table for the pair of graph nodes a, b. */
+static int *pair_slot(Reduce *R, int a, int b) {
+    uint64_t k = ((uint64_t)(a < b ? a : b) << 32 | (uint32_t)(a < b ? b : a)) + 1; /* never 0 */
+    unsigned i = (unsigned)((k * 0x9E3779B97F4A7C15u) >> 32) & R->mask;
+    while (R->key[i] && R->key[i] != k)
+        i = (i + 1) & R->mask;
+    if (!R->key[i]) {
+        R->key[i] = k;
+        R->val[i] = -1;
+    }
+    return &R->val[i];
+}
+
+static void heap_push(Reduce *R, int v) {
+    int i = R->nheap++;
+    for (; i > 0 && R->heap[(i - 1) / 2] > v; i = (i - 1) / 2)
+        R->heap[i] = R->heap[(i - 1) / 2];
+    R->heap[i] = v;
+}
+
+static int heap_pop(Reduce *R) {
+    int top = R->heap[0], v = R->heap[--R->nheap], i = 0;
+    for (;;) {
+        int c = 2 * i + 1;
+        if (c >= R->nheap)
+            break;
+        if (c + 1 < R->nheap && R->heap[c + 1] < R->heap[c])
+            c++;
+        if (R->heap[c] >= v)
+            break;
+        R->heap[i] = R->heap[c];
+        i = c;
+    }
+    if (R->nheap)
+        R->heap[i] = v;
+    return top;
+}
+
+static void drop_edge(Reduce *R, int j) {
+    Edge *e = &R->E[j];
+    e->alive = false;
+    R->deg[R->loc[e->u]]--;
+    if (e->w != e->u)
+        R->deg[R->loc[e->w]]--;
+}
+
+/* Edge j joins edge i < j in parallel; i keeps the adaptor. */
+static void merge_parallel(Reduce *R, int i, int j) {
+    Edge *E = R->E;
+    bool same = E[i].u == E[j].u && E[i].w == E[j].w;
+    E[i].node = combine(W_PARALLEL, &E[i], 1, &E[j], same ? 1 : -1, E[i].u, E[i].w);
+    drop_edge(R, j);
+}
+
+/* The two alive edges at local node v (whose degree is 2), lower first;
+ * stale entries of its list go. */
+static void two_edges(Reduce *R, int v, int g, int *a, int *b) {
+    int n = 0;
+    for (int k = 0; k < R->nadj[v]; k++) {
+        int e = R->adj[v][k];
+        const Edge *x = &R->E[e];
+        if (!x->alive || (x->u != g && x->w != g) || (n > 0 && R->adj[v][0] == e) ||
+            (n > 1 && R->adj[v][1] == e))
+            continue;
+        R->adj[v][n++] = e;
+    }
+    R->nadj[v] = n;
+    if (n != 2)
+        die("node %d has %d edges where its degree is 2", g, n);
+    *a = R->adj[v][0] < R->adj[v][1] ? R->adj[v][0] : R->adj[v][1];
+    *b = R->adj[v][0] < R->adj[v][1] ? R->adj[v][1] : R->adj[v][0];
+}
+
+/* One series merge at local node v if it has exactly two edges, both
+ * adaptable, to two different nodes; then the parallel merge it may
+ * allow. */
+static void merge_series(Reduce *R, int v, int g) {
+    Edge *E = R->E;
+    int ia, ib;
+    two_edges(R, v, g, &ia, &ib);
+    Edge *a = &E[ia], *b = &E[ib];
+    if (!a->node || !b->node || a->u == a->w || b->u == b->w)
+        return;
+    int x = a->u == g ? a->w : a->u;
+    int y = b->u == g ? b->w : b->u;
+    if (x == y)
+        return; /* a parallel pair: merged already */
+    int pa = a->u == x ? 1 : -1; /* a runs x -> g */
+    int pb = b->u == g ? 1 : -1; /* b runs g -> y */
+    a->node = combine(W_SERIES, a, pa, b, pb, x, y);
+    *pair_slot(R, x, g) = -1;
+    *pair_slot(R, g, y) = -1;
+    a->u = x;
+    a->w = y;
+    b->alive = false;
+    R->deg[v] = 0;
+    adj_push(R, R->loc[y], ia);
+    int *p = pair_slot(R, x, y);
+    if (*p >= 0) {
+        int i = *p < ia ? *p : ia, j = *p < ia ? ia : *p;
+        merge_parallel(R, i, j);
+        *p = i;
+    } else {
+        *p = ia;
+    }
+    if (R->deg[R->loc[x]] == 2)
+        heap_push(R, R->loc[x]);
+    if (R->deg[R->loc[y]] == 2)
+        heap_push(R, R->loc[y]);
+}
+
+/* Reduces the block's edges E (alive, in element order) whose nodes are
+ * the graph nodes gl[0..nl) in increasing order (loc the inverse). */
+static void reduce(Edge *E, int ne, const int *gl, int nl, const int *loc) {
+    Reduce R = {.E = E, .ne = ne, .loc = loc, .nl = nl};
+    R.deg = arena_alloc(sizeof(int) * (size_t)(nl + 1));
+    R.adj = arena_alloc(sizeof(int *) * (size_t)(nl + 1));
+    R.nadj = arena_alloc(sizeof(int) * (size_t)(nl + 1));
+    R.cadj = arena_alloc(sizeof(int) * (size_t)(nl + 1));
+    unsigned cap = 16;
+    while (cap < 4u * (unsigned)ne + 4)
+        cap *= 2;
+    R.mask = cap - 1;
+    R.key = arena_alloc(sizeof(uint64_t) * cap);
+    R.val = arena_alloc(sizeof(int) * cap);
+    R.heap = arena_alloc(sizeof(int) * (size_t)(nl + 2 * ne + 1));
+    for (int i = 0; i < ne; i++) {
+        R.deg[loc[E[i].u]]++;
+        adj_push(&R, loc[E[i].u], i);
+        if (E[i].w != E[i].u) {
+            R.deg[loc[E[i].w]]++;
+            adj_push(&R, loc[E[i].w], i);
         }
     }
-    return false;
-}
-
-/* One series merge at a node with exactly two edges. */
-static bool reduce_series(Edge *E, int ne, int nnodes) {
-    for (int n = 0; n < nnodes; n++) {
-        int cnt = 0, at[3];
-        for (int i = 0; i < ne && cnt < 3; i++)
-            if (E[i].alive && (E[i].u == n || E[i].w == n))
-                at[cnt++] = i;
-        if (cnt != 2)
+    for (int i = 0; i < ne; i++) { /* the first round of parallel merges */
+        if (!E[i].node)
             continue;
-        Edge *a = &E[at[0]], *b = &E[at[1]];
-        if (!a->node || !b->node || a->u == a->w || b->u == b->w)
-            continue;
-        int x = a->u == n ? a->w : a->u;
-        int y = b->u == n ? b->w : b->u;
-        if (x == y)
-            continue; /* a parallel pair: left to reduce_parallel */
-        int pa = a->u == x ? 1 : -1; /* a runs x -> n */
-        int pb = b->u == n ? 1 : -1; /* b runs n -> y */
-        a->node = combine(W_SERIES, a, pa, b, pb, x, y);
-        a->u = x;
-        a->w = y;
-        b->alive = false;
-        return true;
+        int *p = pair_slot(&R, E[i].u, E[i].w);
+        if (*p < 0)
+            *p = i;
+        else
+            merge_parallel(&R, *p, i);
     }
-    return false;
-}
-
-static void number(Wdf *w, WNode *n, Vec *order) {
-    for (int i = 0; i < n->nchild; i++)
-        number(w, n->child[i], order);
-    n->id = order->len;
-    vec_push(order, n);
+    for (int v = 0; v < nl; v++)
+        if (R.deg[v] == 2)
+            heap_push(&R, v);
+    while (R.nheap) {
+        int v = heap_pop(&R);
+        if (R.deg[v] == 2)
+            merge_series(&R, v, gl[v]);
+    }
 }
 
 /* One nonlinear element per root: several need a delay between them. */
@@ -171,51 +372,55 @@ static void adapt_nonlinear(Wdf *wd, Root *r, int k) {
     r->R[k] = Rth;
 }
 
-static void build_root(Wdf *wd, Root *r, Edge *E, int ne) {
+static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl, const int *loc) {
     Circuit *c = wd->c;
-    int *core = arena_alloc(sizeof(int) * (size_t)c->nnodes);
-    for (int i = 0; i < c->nnodes; i++)
+    int *core = arena_alloc(sizeof(int) * (size_t)(nl + 1)); /* local node -> core index */
+    for (int i = 0; i < nl; i++)
         core[i] = -2;
     r->ref_node = -1;
     for (int i = 0; i < ne; i++)
         if (E[i].alive) {
-            core[E[i].u] = core[E[i].w] = -1;
+            core[loc[E[i].u]] = core[loc[E[i].w]] = -1;
             if (E[i].u == 0 || E[i].w == 0)
                 r->ref_node = 0;
             if (r->ref_node < 0)
                 r->ref_node = E[i].u;
         }
-    r->core_node = arena_alloc(sizeof(int) * (size_t)c->nnodes);
-    for (int n = 0; n < c->nnodes; n++)
-        if (core[n] == -1 && n != r->ref_node) {
-            core[n] = r->ncore;
-            r->core_node[r->ncore++] = n;
+    r->core_node = arena_alloc(sizeof(int) * (size_t)(nl + 1));
+    for (int v = 0; v < nl; v++)
+        if (core[v] == -1 && gl[v] != r->ref_node) {
+            core[v] = r->ncore;
+            r->core_node[r->ncore++] = gl[v];
         }
-    core[r->ref_node] = -1;
-    r->edge = arena_alloc(sizeof(RootEdge) * (size_t)ne);
+    if (r->ref_node >= 0)
+        core[loc[r->ref_node]] = -1;
+    int nalive = 0;
+    for (int i = 0; i < ne; i++)
+        nalive += E[i].alive;
+    r->edge = arena_alloc(sizeof(RootEdge) * (size_t)(nalive + 1));
     /* ports first, then nonlinear edges, V sources, I sources */
-    static const int order[] = {0, 3, 1, 2};
+    static const int order[] = {EDGE_PORT, EDGE_NL, EDGE_V, EDGE_I};
     for (int pass = 0; pass < 4; pass++)
         for (int i = 0; i < ne; i++) {
             if (!E[i].alive)
                 continue;
             ElemKind ek = E[i].node ? E_R : c->elems[E[i].src].kind;
-            int kind = E[i].node ? 0 : ek == E_V ? 1 : ek == E_I ? 2 : 3;
+            int kind = E[i].node ? EDGE_PORT : ek == E_V ? EDGE_V : ek == E_I ? EDGE_I : EDGE_NL;
             if (kind != order[pass])
                 continue;
             RootEdge *re = &r->edge[r->nedge++];
             re->kind = kind;
             re->node = E[i].node;
             re->elem = E[i].src;
-            re->p = core[E[i].u];
-            re->q = core[E[i].w];
-            if (kind == 0) {
+            re->p = core[loc[E[i].u]];
+            re->q = core[loc[E[i].w]];
+            if (kind == EDGE_PORT) {
                 r->nport++;
                 r->pmask |= E[i].node->pmask;
             }
-            if (kind == 1)
+            if (kind == EDGE_V)
                 r->nv++;
-            if (kind == 3)
+            if (kind == EDGE_NL)
                 r->nnl++;
         }
     check_nonlinear(wd, r);
@@ -230,73 +435,117 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne) {
         error_at(c->elems[0].pos, "the network's equations are singular: its element values span too wide a "
                  "range to solve in double precision");
     if (singular) {
-        Vec names = {0};
-        for (int i = r->nport + r->nnl; i < r->nedge; i++)
-            vec_push(&names, (void *)c->elems[r->edge[i].elem].name);
-        const Elem *e0 = &c->elems[r->edge[r->nport + r->nnl].elem];
-        char *list = "";
-        for (int i = 0; i < names.len; i++)
-            list = format("%s%s'%s'", list, i ? ", " : "", (char *)names.data[i]);
+        int first = r->nport + r->nnl;
+        const Elem *e0 = &c->elems[r->edge[first].elem];
+        size_t len = 1;
+        for (int i = first; i < r->nedge; i++)
+            len += strlen(c->elems[r->edge[i].elem].name) + 4;
+        char *list = arena_alloc(len), *p = list;
+        for (int i = first; i < r->nedge; i++)
+            p += sprintf(p, "%s'%s'", i > first ? ", " : "", c->elems[r->edge[i].elem].name);
         error_at(e0->pos, "the ideal sources %s cannot all hold: voltage sources form a loop or "
                  "current sources a cut-set (give one a series or parallel resistance, R=)", list);
     }
 }
 
+/* The edges at each graph node, in edge order (an edge from a node to
+ * itself once): CSR arrays start[nnodes + 1], at[]. */
+static int *incidence(const Edge *E, int ne, int nnodes, int **start_out) {
+    int *start = arena_alloc(sizeof(int) * (size_t)(nnodes + 1));
+    int *fill = arena_alloc(sizeof(int) * (size_t)(nnodes + 1));
+    for (int i = 0; i < ne; i++) {
+        start[E[i].u + 1]++;
+        if (E[i].w != E[i].u)
+            start[E[i].w + 1]++;
+    }
+    for (int v = 0; v < nnodes; v++)
+        start[v + 1] += start[v];
+    int *at = arena_alloc(sizeof(int) * (size_t)(start[nnodes] + 1));
+    for (int i = 0; i < ne; i++) {
+        at[start[E[i].u] + fill[E[i].u]++] = i;
+        if (E[i].w != E[i].u)
+            at[start[E[i].w] + fill[E[i].w]++] = i;
+    }
+    *start_out = start;
+    return at;
+}
+
 /* Biconnected blocks of the element graph (alive edges): two edges share
  * a block if a simple cycle holds both.  Blocks that meet at one node
  * exchange no current, so each is solved on its own.  Depth-first search
- * with low points and a stack of edges; returns the number of blocks and
- * sets block[i] for every alive edge. */
-typedef struct Dfs {
-    Edge *E;
-    int ne, nblocks, time;
-    int *disc, *low, *stack, sp, *block;
-} Dfs;
-
-static void dfs(Dfs *d, int v, int via) {
-    d->disc[v] = d->low[v] = ++d->time;
-    for (int i = 0; i < d->ne; i++) {
-        Edge *e = &d->E[i];
-        if (!e->alive || i == via || (e->u != v && e->w != v))
-            continue;
-        int u = e->u == v ? e->w : e->u;
-        if (!d->disc[u]) {
-            d->stack[d->sp++] = i;
-            dfs(d, u, i);
-            if (d->low[u] < d->low[v])
-                d->low[v] = d->low[u];
-            if (d->low[u] >= d->disc[v]) { /* v separates: pop one block */
-                int k;
-                do {
-                    k = d->stack[--d->sp];
-                    d->block[k] = d->nblocks;
-                } while (k != i);
-                d->nblocks++;
-            }
-        } else if (d->disc[u] < d->disc[v]) {
-            d->stack[d->sp++] = i;
-            if (d->disc[u] < d->low[v])
-                d->low[v] = d->disc[u];
-        }
-    }
-}
+ * with low points and a stack of edges (Hopcroft and Tarjan), its own
+ * stack of frames in place of recursion; returns the number of blocks and
+ * sets block[i] for every alive edge (an edge from a node to itself is in
+ * none: -1). */
+typedef struct Frame {
+    int v, via, next; /* node, edge it was reached by, next of its edges to try */
+} Frame;
 
 static int blocks(Edge *E, int ne, int nnodes, int *block) {
-    Dfs d = {.E = E, .ne = ne, .block = block};
-    d.disc = arena_alloc(sizeof(int) * (size_t)nnodes);
-    d.low = arena_alloc(sizeof(int) * (size_t)nnodes);
-    d.stack = arena_alloc(sizeof(int) * (size_t)(ne + 1));
+    int *start, *at = incidence(E, ne, nnodes, &start);
+    int *disc = arena_alloc(sizeof(int) * (size_t)(nnodes + 1));
+    int *low = arena_alloc(sizeof(int) * (size_t)(nnodes + 1));
+    int *stack = arena_alloc(sizeof(int) * (size_t)(ne + 1));
+    Frame *fr = arena_alloc(sizeof(Frame) * (size_t)(nnodes + 1));
+    int sp = 0, nf = 0, time = 0, nblocks = 0;
     for (int i = 0; i < ne; i++)
         block[i] = -1;
-    for (int v = 0; v < nnodes; v++)
-        if (!d.disc[v])
-            dfs(&d, v, -1);
-    return d.nblocks;
+    for (int root = 0; root < nnodes; root++) {
+        if (disc[root])
+            continue;
+        disc[root] = low[root] = ++time;
+        fr[nf++] = (Frame){root, -1, start[root]};
+        while (nf) {
+            Frame *f = &fr[nf - 1];
+            int v = f->v;
+            if (f->next < start[v + 1]) {
+                int i = at[f->next++];
+                Edge *e = &E[i];
+                if (!e->alive || i == f->via)
+                    continue;
+                int u = e->u == v ? e->w : e->u;
+                if (!disc[u]) {
+                    stack[sp++] = i;
+                    disc[u] = low[u] = ++time;
+                    fr[nf++] = (Frame){u, i, start[u]};
+                } else if (disc[u] < disc[v]) {
+                    stack[sp++] = i;
+                    if (disc[u] < low[v])
+                        low[v] = disc[u];
+                }
+                continue;
+            }
+            int via = f->via;
+            if (--nf == 0)
+                break;
+            int p = fr[nf - 1].v; /* back in the parent: v done */
+            if (low[v] < low[p])
+                low[p] = low[v];
+            if (low[v] >= disc[p]) { /* p separates: pop one block */
+                int k;
+                do {
+                    k = stack[--sp];
+                    block[k] = nblocks;
+                } while (k != via);
+                nblocks++;
+            }
+        }
+    }
+    return nblocks;
 }
 
+/* The path from ground to each graph node along a breadth-first tree of
+ * the element graph: element indices with sign, so v(node) = sum sign *
+ * v(elem).  A node's path is its parent's and one step more, so a node
+ * shares its storage with the child whose subtree is deepest: a chain of
+ * n nodes holds n steps in all, not n^2 / 2. */
 static void build_paths(Wdf *w) {
     Circuit *c = w->c;
     int nn = c->nnodes;
+    Edge *E = arena_alloc(sizeof(Edge) * (size_t)(c->nelems + 1));
+    for (int i = 0; i < c->nelems; i++)
+        E[i] = (Edge){c->elems[i].n[0], c->elems[i].n[1], NULL, -1, true};
+    int *start, *at = incidence(E, c->nelems, nn, &start);
     int *pe = arena_alloc(sizeof(int) * (size_t)nn), *ps = arena_alloc(sizeof(int) * (size_t)nn);
     int *from = arena_alloc(sizeof(int) * (size_t)nn), *queue = arena_alloc(sizeof(int) * (size_t)nn);
     bool *seen = arena_alloc(sizeof(bool) * (size_t)nn);
@@ -305,7 +554,8 @@ static void build_paths(Wdf *w) {
     seen[0] = true;
     while (head < tail) {
         int n = queue[head++];
-        for (int i = 0; i < c->nelems; i++)
+        for (int j = start[n]; j < start[n + 1]; j++) {
+            int i = at[j];
             for (int k = 0; k < 2; k++) {
                 int m = c->elems[i].n[!k];
                 if (c->elems[i].n[k] != n || seen[m])
@@ -316,21 +566,53 @@ static void build_paths(Wdf *w) {
                 from[m] = n;
                 queue[tail++] = m;
             }
+        }
+    }
+    for (int n = 1; n < nn; n++) /* unreached (never, past elaboration): one step from ground */
+        if (!seen[n])
+            queue[tail++] = n;
+    /* height of each node's subtree; each node's deepest child (the first
+     * of equals) continues its storage */
+    int *height = arena_alloc(sizeof(int) * (size_t)nn), *heir = arena_alloc(sizeof(int) * (size_t)nn);
+    for (int n = 0; n < nn; n++)
+        heir[n] = -1;
+    for (int t = tail - 1; t > 0; t--) {
+        int m = queue[t], p = from[m];
+        if (heir[p] < 0 || height[m] + 1 > height[p])
+            height[p] = height[m] + 1, heir[p] = m;
     }
     w->path = arena_alloc(sizeof(int *) * (size_t)nn);
     w->pathlen = arena_alloc(sizeof(int) * (size_t)nn);
-    for (int n = 1; n < nn; n++) {
-        int len = 0;
-        for (int m = n; m != 0; m = from[m])
-            len++;
-        w->path[n] = arena_alloc(sizeof(int) * (size_t)(2 * len));
-        w->pathlen[n] = len;
-        int k = len;
-        for (int m = n; m != 0; m = from[m]) {
-            k--;
-            w->path[n][2 * k] = pe[m];
-            w->path[n][2 * k + 1] = ps[m];
+    for (int t = 1; t < tail; t++) {
+        int m = queue[t], p = from[m], len = w->pathlen[p] + 1;
+        if (p != 0 && heir[p] == m) {
+            w->path[m] = w->path[p];
+        } else {
+            w->path[m] = arena_alloc(sizeof(int) * (size_t)(2 * (len + height[m])));
+            if (p != 0)
+                memcpy(w->path[m], w->path[p], sizeof(int) * (size_t)(2 * (len - 1)));
         }
+        w->pathlen[m] = len;
+        w->path[m][2 * (len - 1)] = pe[m];
+        w->path[m][2 * (len - 1) + 1] = ps[m];
+    }
+}
+
+/* Post-order numbering of a subtree (children before parents). */
+static void number(WNode *top, int root, Vec *order) {
+    Items st = {0};
+    items_push(&st, top, 0); /* pol: the next child to visit */
+    while (st.len) {
+        Item *it = &st.v[st.len - 1];
+        if (it->pol < it->n->nchild) {
+            WNode *ch = it->n->child[it->pol++];
+            items_push(&st, ch, 0);
+            continue;
+        }
+        it->n->id = order->len;
+        it->n->root = root;
+        vec_push(order, it->n);
+        st.len--;
     }
 }
 
@@ -362,24 +644,50 @@ Wdf *wdf_build(Circuit *c, double fs) {
     int *block = arena_alloc(sizeof(int) * (size_t)c->nelems);
     w->nroots = blocks(E, c->nelems, c->nnodes, block);
     w->roots = arena_alloc(sizeof(Root) * (size_t)w->nroots);
-    Edge *sub = arena_alloc(sizeof(Edge) * (size_t)c->nelems);
+    /* each block's edges in element order, and its nodes in graph order */
+    int *bstart = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
+    int *bedge = arena_alloc(sizeof(int) * (size_t)(c->nelems + 1));
+    for (int i = 0; i < c->nelems; i++)
+        if (block[i] >= 0)
+            bstart[block[i] + 1]++;
+    for (int b = 0; b < w->nroots; b++)
+        bstart[b + 1] += bstart[b];
+    int *fill = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
+    for (int i = 0; i < c->nelems; i++)
+        if (block[i] >= 0)
+            bedge[bstart[block[i]] + fill[block[i]]++] = i;
+    int *loc = arena_alloc(sizeof(int) * (size_t)c->nnodes);
+    int *gl = arena_alloc(sizeof(int) * (size_t)(2 * c->nelems + 1));
+    Edge *sub = arena_alloc(sizeof(Edge) * (size_t)(c->nelems + 1));
+    for (int n = 0; n < c->nnodes; n++)
+        loc[n] = -1;
     for (int b = 0; b < w->nroots; b++) {
-        for (int i = 0; i < c->nelems; i++) {
-            sub[i] = E[i];
-            sub[i].alive = block[i] == b;
+        int ne = bstart[b + 1] - bstart[b], nl = 0;
+        for (int k = 0; k < ne; k++) {
+            sub[k] = E[bedge[bstart[b] + k]];
+            for (int s = 0; s < 2; s++) {
+                int n = s ? sub[k].w : sub[k].u;
+                if (loc[n] < 0) {
+                    loc[n] = 0;
+                    gl[nl++] = n;
+                }
+            }
         }
-        while (reduce_parallel(sub, c->nelems) || reduce_series(sub, c->nelems, c->nnodes))
-            ;
-        build_root(w, &w->roots[b], sub, c->nelems);
+        qsort(gl, (size_t)nl, sizeof(int), cmp_int);
+        for (int v = 0; v < nl; v++)
+            loc[gl[v]] = v;
+        reduce(sub, ne, gl, nl, loc);
+        for (int k = 0; k < ne; k++)
+            if (sub[k].alive && sub[k].node)
+                finish_tree(sub[k].node);
+        build_root(w, &w->roots[b], sub, ne, gl, nl, loc);
+        for (int v = 0; v < nl; v++)
+            loc[gl[v]] = -1;
     }
     Vec order = {0};
     for (int b = 0; b < w->nroots; b++)
-        for (int i = 0; i < w->roots[b].nport; i++) {
-            int first = order.len;
-            number(w, w->roots[b].edge[i].node, &order);
-            for (int k = first; k < order.len; k++)
-                ((WNode *)order.data[k])->root = b;
-        }
+        for (int i = 0; i < w->roots[b].nport; i++)
+            number(w->roots[b].edge[i].node, b, &order);
     w->nodes = (WNode **)order.data;
     w->nnodes = order.len;
     build_paths(w);
@@ -410,23 +718,31 @@ void wdf_dot(const Wdf *w, FILE *out) {
     for (int b = 0; b < w->nroots; b++)
         for (int i = 0; i < w->roots[b].nedge; i++) {
             const RootEdge *e = &w->roots[b].edge[i];
-            if (e->kind == 0) {
+            if (e->kind == EDGE_PORT) {
                 fprintf(out, "  root%d -> n%d;\n", b, e->node->id);
             } else {
                 fprintf(out, "  s%d_%d [shape=circle,label=\"%s\\n%s\"];\n  root%d -> s%d_%d;\n", b, i,
-                        c->elems[e->elem].name, e->kind == 1 ? "ideal V" : e->kind == 2 ? "ideal I" : "nonlinear",
+                        c->elems[e->elem].name, e->kind == EDGE_V ? "ideal V" : e->kind == EDGE_I ? "ideal I" : "nonlinear",
                         b, b, i);
             }
         }
     fprintf(out, "}\n");
 }
 
-static void dump_node(const Wdf *w, const WNode *n, int depth, int pol, FILE *out) {
-    fprintf(out, "%*s%c%s", 2 * depth, "", pol > 0 ? '+' : '-',
-            n->kind == W_LEAF ? w->c->elems[n->elem].name : n->kind == W_SERIES ? "series" : "parallel");
-    fprintf(out, " R=%.6g\n", n->R);
-    for (int i = 0; i < n->nchild; i++)
-        dump_node(w, n->child[i], depth + 1, n->pol[i], out);
+/* The subtree under top, one line per node, children indented. */
+static void dump_node(const Wdf *w, WNode *top, FILE *out) {
+    Items st = {0};
+    items_push(&st, top, 1); /* pol: the node's polarity times its depth */
+    while (st.len) {
+        Item it = st.v[--st.len];
+        const WNode *n = it.n;
+        int depth = abs(it.pol);
+        fprintf(out, "%*s%c%s", 2 * depth, "", it.pol > 0 ? '+' : '-',
+                n->kind == W_LEAF ? w->c->elems[n->elem].name : n->kind == W_SERIES ? "series" : "parallel");
+        fprintf(out, " R=%.6g\n", n->R);
+        for (int i = n->nchild - 1; i >= 0; i--)
+            items_push(&st, n->child[i], n->pol[i] * (depth + 1));
+    }
 }
 
 void wdf_dump(const Wdf *w, FILE *out) {
@@ -435,10 +751,10 @@ void wdf_dump(const Wdf *w, FILE *out) {
         fprintf(out, "root %d: %d ports, %d nonlinear, %d ideal sources, %d core nodes\n", b, r->nport, r->nnl,
                 r->nedge - r->nport - r->nnl, r->ncore);
         for (int i = 0; i < r->nedge; i++) {
-            if (r->edge[i].kind == 0)
-                dump_node(w, r->edge[i].node, 1, 1, out);
+            if (r->edge[i].kind == EDGE_PORT)
+                dump_node(w, r->edge[i].node, out);
             else
-                fprintf(out, "  %s %s\n", r->edge[i].kind == 3 ? "nonlinear" : "source",
+                fprintf(out, "  %s %s\n", r->edge[i].kind == EDGE_NL ? "nonlinear" : "source",
                         w->c->elems[r->edge[i].elem].name);
         }
     }

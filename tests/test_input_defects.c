@@ -70,21 +70,9 @@ static int run_wdc(const char *args, char **out) {
 /* First line of s, in the arena. */
 static const char *first_line(const char *s) { return arena_strndup(s, strcspn(s, "\n")); }
 
-/* Loads text as "t.wdn" with the diagnostics captured; returns the
- * circuit (NULL on an error) and in *report the first line printed. */
-static Circuit *load(const char *text, const char **report) {
-    char *buf = NULL;
-    size_t len = 0;
-    FILE *saved = diag.out;
-    diag.out = open_memstream(&buf, &len);
-    assert_non_null(diag.out);
-    Circuit *c = wdc_load_string("t.wdn", text);
-    fclose(diag.out);
-    diag.out = saved;
-    *report = first_line(buf);
-    free(buf);
-    return c;
-}
+/* Loads text as "t.wdn"; returns the circuit (NULL on an error) and in
+ * *report the first line printed. */
+static Circuit *load(const char *text, const char **report) { return tl_netlist_load(text, report); }
 
 /* text must be refused, its first line of diagnostics exactly want. */
 static void expect_error(const char *text, const char *want) {

@@ -872,3 +872,21 @@ int tl_system(const char *cmd) {
     int r = system(cmd);
     return WIFEXITED(r) ? WEXITSTATUS(r) : -1;
 }
+
+Circuit *tl_netlist_load(const char *text, const char **report) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *saved = diag.out;
+    diag.out = open_memstream(&buf, &len);
+    if (!diag.out) {
+        diag.out = saved;
+        *report = "";
+        return NULL;
+    }
+    Circuit *c = wdc_load_string("t.wdn", text);
+    fclose(diag.out);
+    diag.out = saved;
+    *report = arena_strndup(buf, strcspn(buf, "\n"));
+    free(buf);
+    return c;
+}

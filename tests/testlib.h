@@ -42,6 +42,10 @@ int tl_voice_build(const char *netlist, int single, tl_voice *v);
  * precision is single's: `extra` may not name one. */
 int tl_voice_build_args(const char *netlist, int single, const char *const *extra,
                         const char *cflags, tl_voice *v);
+/* Loads netlist text as "t.wdn" through the library (wdc_load_string)
+ * with its diagnostics captured: the circuit, or NULL on an error; the
+ * first line printed goes to *report (in the arena). */
+Circuit *tl_netlist_load(const char *text, const char **report);
 /* Unloads the voice and removes its directory.  Directories of voices
  * never freed (a test that failed half-way) are removed at exit. */
 void tl_voice_free(tl_voice *v);
