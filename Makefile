@@ -20,7 +20,7 @@ TLIB_OBJS  = $(TEST_LIB:%.c=build/%.o)
 TEST_BINS  = $(TEST_SRCS:tests/%.c=build/tests/%)
 NETLISTS   = $(wildcard netlists/*.wdn)
 # tests built again under ThreadSanitizer, and under AddressSanitizer + UBSan
-TSAN_BINS  = build/tests/test_storm_tsan
+TSAN_BINS  = build/tests/test_storm_tsan build/tests/test_prepare_tsan
 ASAN_BINS  = build/tests/test_engine_asan build/tests/test_scene_asan build/tests/test_tree_asan build/tests/test_treescene_asan build/tests/test_evolve_asan build/tests/test_surf_asan
 
 all: bin/wdc bin/wdrt
@@ -106,6 +106,12 @@ build/examples/embed: examples/embed.c examples/score.h build/examples/piano_key
 build/tests/test_storm_tsan: tests/test_storm.c runtime/engine.c runtime/bodies.c runtime/surf.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	@mkdir -p $(dir $@)
 	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -iquote runtime -iquote gen -o $@ tests/test_storm.c runtime/engine.c runtime/bodies.c runtime/surf.c \
+		$(TLIB_OBJS) build/libwdc.a build/libwdrt.a -lcmocka $(LDLIBS) -lpthread
+
+# The prepared designs of the engine, posted from a thread of their own.
+build/tests/test_prepare_tsan: tests/test_prepare.c runtime/engine.c runtime/wdrt.h $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	@mkdir -p $(dir $@)
+	$(CC) $(filter-out -MMD -MP,$(CFLAGS)) -fsanitize=thread -iquote runtime -iquote gen -o $@ tests/test_prepare.c runtime/engine.c \
 		$(TLIB_OBJS) build/libwdc.a build/libwdrt.a -lcmocka $(LDLIBS) -lpthread
 
 bench: deps

@@ -179,6 +179,7 @@ typedef struct Ctx {
     bool single;
     bool energy;     /* work accounting in process */
     bool settle;     /* reset and set_ic solve for a consistent Kirchhoff state */
+    bool flushes;    /* process flushes tiny states, every FLUSH_RUN samples counted across calls */
     Stmt *stmt;      /* the sample loop, in order */
     int nstmt, capstmt;
     Local *loc;      /* the locals of process, in order */
@@ -1549,6 +1550,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "c_ps", x->npwl, "slope db/da of each segment");
     field(&b, r, "s_dl", x->ndl, "transmission lines: the waves that entered each end");
     scalar(&b, x->nline || nw, "unsigned s_pos;", "delays: next write position");
+    scalar(&b, x->flushes, "unsigned s_run;", "samples since the states were last flushed");
     field(&b, "unsigned", "c_D", x->nline, "transmission lines: delay in samples");
     field(&b, r, "s_wv", W1(x->nwv), "waveguides: right- and left-going lines");
     field(&b, "unsigned", "c_wN", W1(2 * nw), "waveguides: whole samples of each line");
@@ -1861,6 +1863,8 @@ static const char *clears(Ctx *x) {
             emit(&b, "    memset(st->%s, 0, sizeof st->%s);\n", arr[k], arr[k]);
     if (x->nline || x->c->nwgs)
         emit(&b, "    st->s_pos = 0;\n");
+    if (x->flushes)
+        emit(&b, "    st->s_run = 0;\n");
     if (x->energy && x->nsrc)
         emit(&b, "    st->s_work = 0;\n");
     return str(&b);
@@ -1909,11 +1913,36 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
 
 /* process: the statements and locals its outputs and states need, and
  * its parameters (UNUSED where a voice has no inputs, say). */
+/* The count of samples since the last flush: loaded, stored, and the
+ * flush done when a run is complete. */
+static void decl_run(Buf *decl, Buf *wb, Buf *fl) {
+    emit(decl, "    unsigned t_run = st->s_run;\n");
+    emit(wb, "    st->s_run = t_run;\n");
+    const char *body = str(fl);
+    Buf b = {0};
+    emit(&b, "        if (t_run == FLUSH_RUN) {\n            t_run = 0;\n");
+    for (const char *p = body; *p;) { /* each line one level deeper */
+        const char *e = strchr(p, '\n');
+        size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
+        emit(&b, "    %.*s", (int)n, p);
+        p += n;
+    }
+    emit(&b, "        }\n");
+    *fl = b;
+}
+
 static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     Names live = {0};
     const char *sample = sample_text(x, &live);
     Buf decl = {0}, wb = {0}, fl = {0};
     print_locals(x, &live, &decl, &wb, &fl);
+    /* runs of FLUSH_RUN samples are counted across calls (s_run), so the
+     * states are flushed at the same samples however a host splits its
+     * calls */
+    x->flushes = fl.len > 0;
+    if (x->flushes) {
+        decl_run(&decl, &wb, &fl);
+    }
     const char *head = format("%s%s", dirty, str(&decl)), *loop = format("%s%s%s", sample, str(&fl), str(&wb));
     if (uses(format("%s%s", head, loop), "st"))
         head = format("    state *st = vst;\n%s", head);
@@ -1923,6 +1952,9 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     set(t, "hoist", head);
     set(t, "sample", sample);
     set(t, "flush", str(&fl));
+    set(t, "run_end", x->flushes ? "nframes - n > (int)(FLUSH_RUN - t_run) ? n + (int)(FLUSH_RUN - t_run) : nframes"
+                                 : "nframes - n > FLUSH_RUN ? n + FLUSH_RUN : nframes");
+    set(t, "run_count", x->flushes ? "        t_run += (unsigned)(t_end - n);\n" : "");
     set(t, "writeback", str(&wb));
 }
 

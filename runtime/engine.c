@@ -60,6 +60,7 @@ typedef struct ev {
 typedef struct ramp {
     double v, to, step;
     int left;
+    int hold; /* frames it stays at v before it moves */
 } ramp;
 
 /* A param on its way to `to`: set at frames next, next + every, ... */
@@ -981,11 +982,14 @@ static void ramp_to(ramp *r, double to, int frames) {
     r->to = to;
     r->step = (to - r->v) / frames;
     r->left = frames;
+    r->hold = 0;
 }
 
 static double ramp_next(ramp *r) {
     double v = r->v;
-    if (r->left > 0)
+    if (r->hold > 0)
+        r->hold--;
+    else if (r->left > 0)
         r->v = --r->left == 0 ? r->to : r->v + r->step;
     return v;
 }
@@ -1047,8 +1051,10 @@ static void unvirt(wdrt_engine *e, int k) {
 }
 
 /* Moves the sound of instance k onto a free spare of its pool, which fades
- * it out over one block; k is then free to play. */
-static void steal(wdrt_engine *e, int k) {
+ * it out over one block from offset `off` of the span being rendered (the
+ * frame of the note that takes k, whatever the host's calls); k is then
+ * free to play. */
+static void steal(wdrt_engine *e, int k, int off) {
     inst *v = &e->inst[k];
     const pool *p = &e->pools[v->pool];
     e->s.steals++;
@@ -1074,6 +1080,7 @@ static void steal(wdrt_engine *e, int k) {
     w->st = keep.st, w->pr = keep.pr, w->in = keep.in, w->spare = 1, w->act = keep.act;
     w->after = A_FREE;
     ramp_to(&w->fade, 0, e->B);
+    w->fade.hold = off > w->start ? off - w->start : 0;
     activate(e, s);
     if (v->slot >= 0 && e->slots[v->slot].inst == k) /* the old sound goes on from the same place */
         e->slots[v->slot].inst = e->slots[v->slot].owner = s;
@@ -1089,7 +1096,7 @@ static void play(wdrt_engine *e, const ev *x) {
             k = i;
     if (k < 0) {
         k = victim(e, p);
-        steal(e, k);
+        steal(e, k, x->off);
     }
     inst *v = &e->inst[k];
     restore(e, v);

@@ -11,7 +11,9 @@
  * arguments (clamping as set_param clamps), and set_param, install and
  * process allocate nothing.  A voice whose loops no param moves has no
  * prepare at all.  The engine's wdrt_engine_set_prepared plays the same
- * notes as wdrt_engine_set, bit for bit, and gives its design slots back.
+ * notes as wdrt_engine_set, bit for bit, and gives its design slots back,
+ * also from a producer thread of its own while another renders (built
+ * with ThreadSanitizer too: build/tests/test_prepare_tsan).
  */
 #include <stdarg.h>
 #include <stddef.h>
@@ -20,6 +22,8 @@
 #include <cmocka.h>
 
 #include <math.h>
+#include <pthread.h>
+#include <sched.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -188,7 +192,7 @@ static void test_which(void **s) {
 /* Notes of piano_mid, each detuned its own way as it is played, and the
  * pool detuned half-way: wdrt_engine_set_prepared against
  * wdrt_engine_set, more notes than the engine has design slots. */
-static double *engine_run(int prepared, long n) {
+static double *engine_run(int prepared, long n, int spans) {
     const wdv_class *c = g_pm.cls;
     wdrt_pool_config pc = wdrt_pool_config_init(c, 4);
     pc.cost_ns = 1;
@@ -217,8 +221,9 @@ static double *engine_run(int prepared, long n) {
             assert_int_equal(wdrt_engine_set_prepared(e, frame, note, 1, &id, &d), WDRT_OK);
         else if (k % 4 != 3)
             assert_int_equal(wdrt_engine_set(e, frame, note, id, d), WDRT_OK);
-        /* render up to the next note: the producer runs ahead by one note */
-        long to = (long)((k + 1) * (n - 4096) / notes);
+        /* render up to the note just posted (the producer runs ahead by
+         * one), or in spans of `spans` frames */
+        long to = spans ? at + spans * (((long)frame - at) / spans) : (long)frame;
         if (to > at) {
             wdrt_engine_process(e, y + at, (uint32_t)(to - at));
             at = to;
@@ -232,16 +237,112 @@ static double *engine_run(int prepared, long n) {
     return y;
 }
 
+/* A full pool steals a note: the stolen one fades out from the frame of
+ * the note that takes its instance, whatever spans the host renders in
+ * (the fade once began where the host's call did).  The same notes in
+ * spans of 37 and of 4096 frames: equal to rounding (the order in which
+ * voices are summed may differ). */
+static void test_steal_any_spans(void **s) {
+    (void)s;
+    const long n = 48000;
+    double *a = engine_run(0, n, 0), *b = engine_run(0, n, 37), *c = engine_run(0, n, 4096), peak = 0, e = 0;
+    for (long i = 0; i < n; i++) {
+        peak = fmax(peak, fabs(a[i]));
+        e = fmax(e, fmax(fabs(a[i] - b[i]), fabs(a[i] - c[i])));
+    }
+    print_message("steals in spans of 37 and 4096 frames: %.3g of the peak from spans up to each note\n", e / peak);
+    assert_true(peak > 1e-6);
+    assert_true(e <= 1e-12 * peak);
+    free(a);
+    free(b);
+    free(c);
+}
+
 static void test_engine_prepared(void **s) {
     (void)s;
     const long n = 48000;
-    double *a = engine_run(0, n), *b = engine_run(1, n), peak = 0;
+    double *a = engine_run(0, n, 0), *b = engine_run(1, n, 0), peak = 0;
     for (long i = 0; i < n; i++) {
         peak = fmax(peak, fabs(a[i]));
         if (memcmp(&a[i], &b[i], sizeof a[i]))
             fail_msg("frame %ld: %.17g with set, %.17g with set_prepared", i, a[i], b[i]);
     }
     assert_true(peak > 1e-6);
+    free(a);
+    free(b);
+}
+
+/* The same notes posted by a producer thread, designs made there, while
+ * this thread renders each span as soon as the notes that start in it
+ * are posted: the render of test_engine_prepared, bit for bit. */
+typedef struct Producer {
+    wdrt_engine *e;
+    int id, notes, posted, failed; /* posted, failed: atomic */
+    long n;
+} Producer;
+
+static uint64_t note_frame(int k, int notes, long n) { return (uint64_t)(k * (n - 4096) / notes + 17 * (k % 3)); }
+
+static void *produce(void *arg) {
+    Producer *p = arg;
+    for (int k = 0; k < p->notes; k++) {
+        uint64_t frame = note_frame(k, p->notes, p->n);
+        double d = k == p->notes / 2 ? 7.25 : 0.5 + 0.37 * k;
+        d -= 10 * floor(d / 10);
+        wdrt_voice v = wdrt_engine_pool(p->e, 0);
+        wdrt_result r = WDRT_OK;
+        if (k != p->notes / 2)
+            r = wdrt_engine_play(p->e, frame, 0, 1.0, 0, &v);
+        for (int tries = 0; r == WDRT_OK && (k == p->notes / 2 || k % 4 != 3); tries++) {
+            r = wdrt_engine_set_prepared(p->e, frame, v, 1, &p->id, &d);
+            if (r != WDRT_QUEUE_FULL || tries > 10000000)
+                break;
+            sched_yield(); /* every slot waits for its frame: the renderer frees them */
+        }
+        if (r != WDRT_OK) {
+            __atomic_store_n(&p->failed, 1, __ATOMIC_RELEASE);
+            return NULL;
+        }
+        __atomic_store_n(&p->posted, k + 1, __ATOMIC_RELEASE);
+    }
+    return NULL;
+}
+
+static void test_engine_threads(void **s) {
+    (void)s;
+    const long n = 48000;
+    const wdv_class *c = g_pm.cls;
+    wdrt_pool_config pc = wdrt_pool_config_init(c, 4);
+    pc.cost_ns = 1;
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 1, &pc);
+    Producer p = {NULL, param_id(c, "detune"), 3 * WDRT_DESIGN_SLOTS / 2, 0, 0, n};
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &p.e), WDRT_OK);
+    double *a = engine_run(1, n, 0), *b = malloc(sizeof(double) * (size_t)n);
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, produce, &p), 0);
+    long at = 0;
+    for (int k = 0; k <= p.notes; k++) {
+        /* render up to the next note's frame once the notes before it are posted */
+        long to = k < p.notes ? (long)note_frame(k, p.notes, n) : n;
+        while (k < p.notes && __atomic_load_n(&p.posted, __ATOMIC_ACQUIRE) < k && !__atomic_load_n(&p.failed, __ATOMIC_ACQUIRE))
+            sched_yield();
+        if (to > at) {
+            wdrt_engine_process(p.e, b + at, (uint32_t)(to - at));
+            at = to;
+        }
+        while (k < p.notes && __atomic_load_n(&p.posted, __ATOMIC_ACQUIRE) < k + 1 &&
+               !__atomic_load_n(&p.failed, __ATOMIC_ACQUIRE))
+            sched_yield();
+        if (__atomic_load_n(&p.failed, __ATOMIC_ACQUIRE))
+            break;
+    }
+    pthread_join(th, NULL);
+    assert_int_equal(p.posted, p.notes);
+    wdrt_engine_stats st;
+    wdrt_engine_get_stats(p.e, &st);
+    assert_int_equal((int)st.late, 0);
+    assert_memory_equal(a, b, sizeof(double) * (size_t)n);
+    wdrt_engine_uninit(p.e, NULL);
     free(a);
     free(b);
 }
@@ -253,6 +354,8 @@ int main(void) {
         cmocka_unit_test(test_prepare_is_pure),
         cmocka_unit_test(test_which),
         cmocka_unit_test(test_engine_prepared),
+        cmocka_unit_test(test_steal_any_spans),
+        cmocka_unit_test(test_engine_threads),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
