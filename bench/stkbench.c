@@ -34,6 +34,7 @@
 #include <string.h>
 
 #include "benchlib.h"
+#include "peers.h" /* stkshim.cpp */
 #include "wdrt.h"
 #include "wdvoice.h"
 #include "../tests/testlib.h"
@@ -48,14 +49,6 @@
 #define RUNS 5
 #define STK_LOWEST 50.0
 #define VOICE_CFLAGS "-O2"
-
-/* bench/stkshim.cpp */
-struct stkp;
-void stkp_set_rate(double fs);
-struct stkp *stkp_new(double lowest, unsigned seed);
-void stkp_note_on(struct stkp *s, double freq, double amp);
-void stkp_tick(struct stkp *s, double *buf, int n);
-void stkp_free(struct stkp *s);
 
 /* ---- the two voices behind one interface ---- */
 
