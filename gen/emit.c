@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "gen.h"
+#include "solve.h"
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
     tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
@@ -39,35 +40,7 @@ static const char *el_law_init(int k, const NlSpec *nl, bool local) {
     return format("{0, 0, 1, 0, 0, 1, 0, %d, mem_v%d, mem_i%d}", nl->npts, k, k);
 }
 
-typedef struct Buf {
-    char *s;
-    size_t len, cap;
-} Buf;
-
-static void vemit(Buf *b, const char *fmt, va_list ap) {
-    va_list aq;
-    va_copy(aq, ap);
-    int n = vsnprintf(NULL, 0, fmt, aq);
-    va_end(aq);
-    if (b->len + (size_t)n + 1 > b->cap) {
-        size_t cap = (b->cap + (size_t)n + 1) * 2;
-        char *s = arena_alloc(cap);
-        if (b->len)
-            memcpy(s, b->s, b->len);
-        b->s = s;
-        b->cap = cap;
-    }
-    vsnprintf(b->s + b->len, (size_t)n + 1, fmt, ap);
-    b->len += (size_t)n;
-}
-
-static void emit(Buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void emit(Buf *b, const char *fmt, ...) {
-    va_list ap;
-    va_start(ap, fmt);
-    vemit(b, fmt, ap);
-    va_end(ap);
-}
+#define emit buf_add
 
 static const char *str(Buf *b) { return b->s ? b->s : ""; }
 
@@ -194,6 +167,11 @@ typedef struct Ctx {
     int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
     int *moff;       /* root -> offset of its matrix in c_M */
     bool **mzero;    /* root -> its matrix's entries that vanish for any port resistances */
+    const char **rfn; /* root -> its straight-line solve (solve.c), "" if its matrix is all numbers, NULL: root_solve */
+    bool **mnum;     /* root -> its matrix's entries that are numbers, for any port resistances */
+    double **mval;   /* those numbers */
+    Sym **msym;      /* root -> its matrix's entries as values of its straight-line solve */
+    Sx **rsx;        /* root -> the values of its straight-line solve */
     int nM;          /* entries of all root matrices */
     int nline;       /* transmission lines */
     int *line_of;    /* element -> its line, or -1 */
@@ -230,7 +208,7 @@ static void put(Ctx *x, const char *def, const char *fmt, ...) {
     Buf b = {0};
     va_list ap;
     va_start(ap, fmt);
-    vemit(&b, fmt, ap);
+    buf_vadd(&b, fmt, ap);
     va_end(ap);
     if (x->nstmt == x->capstmt) {
         x->capstmt = x->capstmt ? 2 * x->capstmt : 64;
@@ -372,11 +350,15 @@ static void emit_update(Ctx *x, Buf *o) {
                 emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, v);
             continue;
         }
-        emit(o, "    %s { /* %s adaptor */\n        double t = 0;\n", guard(n->pmask),
-             n->kind == W_SERIES ? "series" : "parallel");
+        emit(o, "    %s { /* %s adaptor */\n", guard(n->pmask), n->kind == W_SERIES ? "series" : "parallel");
+        /* the sum of resistances (conductances) in child order: one
+         * expression for a few, else a running sum */
+        Buf sum = {0};
         for (int k = 0; k < n->nchild; k++)
-            emit(o, n->kind == W_SERIES ? "        t += %s;\n" : "        t += 1.0 / %s;\n",
-                 dbl(x, format("st->c_R[%d]", n->child[k]->id)));
+            emit(&sum, n->kind == W_SERIES ? (n->nchild <= 4 ? "%s%s" : "        t += %s%s;\n")
+                                           : (n->nchild <= 4 ? "%s1.0 / %s" : "        t += 1.0 / %s%s;\n"),
+                 n->nchild <= 4 && k ? " + " : "", dbl(x, format("st->c_R[%d]", n->child[k]->id)));
+        emit(o, n->nchild <= 4 ? "        const double t = %s;\n" : "        double t = 0;\n%s", str(&sum));
         emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id, n->kind == W_SERIES ? "t" : "1.0 / t");
         for (int k = 0; k < n->nchild; k++)
             emit(o, n->kind == W_SERIES ? "        st->c_k[%d] = (real)(%s / t);\n"
@@ -412,8 +394,12 @@ static void emit_update(Ctx *x, Buf *o) {
             emit(o, "        st->c_nl[%d] = (real)t_new;\n    }\n", 4 * k + j);
         }
     }
-    for (int b = 0; b < x->w->nroots; b++)
-        emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
+    for (int b = 0; b < x->w->nroots; b++) {
+        if (!x->rfn[b])
+            emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
+        else if (*x->rfn[b])
+            emit(o, "    %s\n        root%d_solve(st);\n", guard(x->w->roots[b].pmask), b);
+    }
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (e->kind == E_W && e->peer > i) /* one delay per line */
@@ -740,6 +726,130 @@ static bool *root_zeros(const Root *r) {
     return z;
 }
 
+/* Root rb's matrix in straight-line code (solve.c), as a function
+ * rootN_solve into x->rfn[rb], with the entries that are numbers for any
+ * port resistances in x->mnum and x->mval; x->rfn[rb] stays NULL if the
+ * root keeps the general solve (root_solve), "" if no entry needs code. */
+static void root_static(Ctx *x, int rb) {
+    const Root *r = &x->w->roots[rb];
+    const int ne = r->nedge;
+    Sx *sx = sx_new("u");
+    Sym *g = arena_alloc(sizeof(Sym) * (size_t)(ne + 1)), *val = arena_alloc(sizeof(Sym) * (size_t)(ne + 1));
+    Sym *pot = arena_alloc(sizeof(Sym) * (size_t)(r->ncore + 1)), *cur = arena_alloc(sizeof(Sym) * (size_t)(ne + 2));
+    for (int k = 0; k < ne; k++)
+        if (r->edge[k].kind == EDGE_PORT)
+            g[k] = sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", r->edge[k].node->id))));
+#define POT(p) ((p) >= 0 ? pot[p] : sym_k(0))
+    /* each nonlinear edge adapted first: the resistance the rest of the
+     * core presents to it, with its sources at rest */
+    for (int k = r->nport; k < r->nport + r->nnl; k++) {
+        Lin *L = lin_new(sx, r->ncore);
+        for (int j = 0; j < ne; j++) {
+            const RootEdge *e = &r->edge[j];
+            if (j != k && (e->kind == EDGE_PORT || e->kind == EDGE_NL))
+                lin_g(L, e->p, e->q, g[j]);
+            else if (e->kind == EDGE_V)
+                lin_v(L, e->p, e->q);
+            else
+                lin_j(L, e->p, e->q); /* the unit current in edge k; sources open */
+        }
+        if (!lin_factor(L))
+            return;
+        for (int j = 0; j < ne; j++)
+            val[j] = sym_k(j == k ? -1 : 0);
+        lin_solve(L, val, pot, NULL);
+        Sym R = sx_sub(sx, POT(r->edge[k].p), POT(r->edge[k].q));
+        if (R.t < 0 && !R.ext)
+            return; /* held by ideal sources: the general solve keeps what it had */
+        int nl = x->nl_first[rb] + k - r->nport;
+        const char *v = sx_use(sx, R);
+        sx_stmt(sx, format("    if (%s > 0 && %s < 1e300) /* the nonlinear edge adapted */\n        st->c_Rn[%d] = (real)%s;\n",
+                           v, v, nl, v));
+        g[k] = sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_Rn[%d]", nl))));
+    }
+    Lin *L = lin_new(sx, r->ncore);
+    for (int j = 0; j < ne; j++) {
+        const RootEdge *e = &r->edge[j];
+        if (e->kind == EDGE_PORT || e->kind == EDGE_NL)
+            lin_g(L, e->p, e->q, g[j]);
+        else if (e->kind == EDGE_V)
+            lin_v(L, e->p, e->q);
+        else
+            lin_j(L, e->p, e->q);
+    }
+    if (!lin_factor(L))
+        return;
+    bool *num = arena_alloc(sizeof(bool) * (size_t)(ne * ne));
+    double *mv = arena_alloc(sizeof(double) * (size_t)(ne * ne));
+    Sym *ms = arena_alloc(sizeof(Sym) * (size_t)(ne * ne));
+    for (int j = 0; j < ne; j++) {
+        for (int k = 0; k < ne; k++)
+            val[k] = sym_k(k == j);
+        lin_solve(L, val, pot, cur);
+        for (int k = 0; k < ne; k++) {
+            const RootEdge *e = &r->edge[k];
+            Sym v = sx_sub(sx, POT(e->p), POT(e->q));
+            Sym out = e->kind == EDGE_V ? cur[k] : e->kind == EDGE_I ? v : sx_sub(sx, sx_mul(sx, sym_k(2), v), sym_k(j == k));
+            num[k * ne + j] = out.t < 0 && !out.ext;
+            mv[k * ne + j] = out.c;
+            ms[k * ne + j] = out;
+        }
+    }
+#undef POT
+    x->mnum[rb] = num;
+    x->mval[rb] = mv;
+    x->msym[rb] = ms;
+    x->rsx[rb] = sx;
+    for (int i = 0; i < ne * ne; i++)
+        x->mzero[rb][i] = num[i] && mv[i] == 0;
+    x->rfn[rb] = "";
+}
+
+/* The function of each root solved in straight-line code: the entries of
+ * its matrix process names (`live`) that are not numbers, stored; none if
+ * there are none and no nonlinear edge to adapt. */
+static void root_fns(Ctx *x, const Names *live) {
+    for (int rb = 0; rb < x->w->nroots; rb++) {
+        const Root *r = &x->w->roots[rb];
+        const int ne = r->nedge;
+        if (!x->rfn[rb])
+            continue;
+        Sx *sx = x->rsx[rb];
+        bool code = r->nnl > 0;
+        for (int i = 0; i < ne * ne; i++)
+            if (!x->mnum[rb][i] && names_has(live, format("m%d_%d_%d", rb, i / ne, i % ne))) {
+                sx_stmt(sx, format("    st->c_M[%d] = (real)%s;\n", x->moff[rb] + i, sx_use(sx, x->msym[rb][i])));
+                code = true;
+            }
+        if (!code)
+            continue;
+        Buf o = {0};
+        emit(&o, "/* Root %d's matrix for the present port resistances: the entries of\n"
+                 " * root_edge's order that process uses and that are not numbers. */\n"
+                 "static void root%d_solve(state *st) {\n", rb, rb);
+        sx_code(sx, &o);
+        emit(&o, "%s}\n", r->nnl ? "{{nl_retune}}" : "");
+        x->rfn[rb] = str(&o);
+    }
+}
+
+/* The term of M[k][j] of root b times `in` in a sum t: an entry that is
+ * a number for any port resistances is written as one. */
+static void mterm(Ctx *x, Buf *t, int b, int k, int j, const char *in) {
+    const int ne = x->w->roots[b].nedge;
+    const char *plus = t->len ? " + " : "";
+    if (in[strspn(in, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.")])
+        in = format("(%s)", in);
+    if (!x->mnum[b] || !x->mnum[b][k * ne + j])
+        emit(t, "%sm%d_%d_%d * %s", plus, b, k, j, in);
+    else if (x->mval[b][k * ne + j] == 1)
+        emit(t, "%s%s", plus, in);
+    else if (x->mval[b][k * ne + j] == -1)
+        emit(t, "%s%s", t->len ? " - " : "-", in);
+    else
+        emit(t, "%s%s * %s", plus, lit(x, x->mval[b][k * ne + j]), in);
+}
+
 static void emit_root(Ctx *x, int b) {
     const Root *r = &x->w->roots[b];
     put(x, NULL, "        /* root %d */\n", b);
@@ -748,7 +858,7 @@ static void emit_root(Ctx *x, int b) {
         for (int j = 0; j < r->nedge; j++) {
             const char *in = root_in(x, b, j);
             if (j != k && !is_zero(in) && !x->mzero[b][k * r->nedge + j])
-                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
+                mterm(x, &t, b, k, j, in);
         }
         int g = x->nl_first[b] + k - r->nport;
         put(x, format("t_an%d", g), "        const real t_an%d = %s;\n", g, t.len ? str(&t) : lit(x, 0));
@@ -761,7 +871,7 @@ static void emit_root(Ctx *x, int b) {
         for (int j = 0; j < r->nedge; j++) {
             const char *in = root_in(x, b, j);
             if (!is_zero(in) && !x->mzero[b][k * r->nedge + j])
-                emit(&t, "%sm%d_%d_%d * %s", t.len ? " + " : "", b, k, j, in);
+                mterm(x, &t, b, k, j, in);
         }
         const char *v = t.len ? str(&t) : lit(x, 0);
         if (r->edge[k].kind == EDGE_PORT) {
@@ -1037,7 +1147,9 @@ static void emit_hoist(Ctx *x) {
         for (int k = 0; k < r->nedge; k++)
             for (int j = 0; j < r->nedge; j++)
                 local(x, format("m%d_%d_%d", b, k, j),
-                      format("    const real m%d_%d_%d = st->c_M[%d];\n", b, k, j, x->moff[b] + k * r->nedge + j),
+                      x->mnum[b] && x->mnum[b][k * r->nedge + j]
+                          ? format("    const real m%d_%d_%d = %s;\n", b, k, j, lit(x, x->mval[b][k * r->nedge + j]))
+                          : format("    const real m%d_%d_%d = st->c_M[%d];\n", b, k, j, x->moff[b] + k * r->nedge + j),
                       NULL, NULL);
     }
     for (int i = 0; i < x->w->nnodes; i++) {
@@ -1122,6 +1234,19 @@ static bool nl_has_force(Ctx *x, int k) {
  * settle and the work. */
 static bool keeps_drive(Ctx *x) { return x->nsrc && (x->settle || x->energy); }
 
+/* True if the cleared state is the one settle would find at reset: no
+ * initial condition, constant drive, nonlinear edge or waveguide gives
+ * any Kirchhoff quantity a value, so all of them are 0. */
+static bool rests_at_zero(Ctx *x) {
+    const Circuit *c = x->c;
+    if (c->nics || x->nnl || c->nwgs)
+        return false;
+    for (int i = 0; i < c->nelems; i++)
+        if (c->elems[i].ic || (x->src[i] >= 0 && c->elems[i].input < 0 && keeps_drive(x)))
+            return false;
+    return true;
+}
+
 /* What reset sets after clearing the states (initial conditions, then
  * the Kirchhoff state from settle), and in *probes what settle then sets
  * of nonlinear edges and displacement probes from the node values x[]. */
@@ -1164,7 +1289,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
     if (c->nwgs)
         emit(o, "    memset(st->s_wv, 0, sizeof st->s_wv);\n    memset(st->s_wf, 0, sizeof st->s_wf);\n"
                 "    memset(st->s_wfp, 0, sizeof st->s_wfp);\n    memset(st->s_wpre, 0, sizeof st->s_wpre);\n");
-    if (x->settle)
+    if (x->settle && !rests_at_zero(x))
         emit(o, "    settle(st, %s);\n", x->nreact ? "react" : "NULL");
 }
 
@@ -1447,6 +1572,114 @@ static const char *root_table(Ctx *x, Buf *desc) {
     return str(&b);
 }
 
+/* How element e enters the initial-condition solve (IC_*). */
+static int ic_kind(const Elem *e) {
+    switch (e->kind) {
+    case E_R: return IC_RES;
+    case E_C: return IC_CAP;
+    case E_L: return IC_IND;
+    case E_V: return e->val ? IC_RV : IC_V;
+    case E_I: return e->val ? IC_RI : IC_I;
+    case E_NL: return e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? IC_FORCE : IC_OPEN;
+    case E_W: return IC_RES; /* an empty line looks like its Z0 */
+    case E_S: return IC_WAVE; /* its last incoming wave behind its port resistance */
+    default: unreachable();
+    }
+}
+
+/* The nonlinear index of element e, or -1. */
+static int nl_index(Ctx *x, const Elem *e) {
+    for (int k = 0; k < x->nnl; k++)
+        if (nl_elem(x, k) == e)
+            return k;
+    return -1;
+}
+
+/* settle in straight-line code (solve.c): the network of ic_table solved
+ * as the compiler eliminated it, or NULL if it needs the general solve.
+ * `force`: whether nl_force exists; `probes`: what settle sets from the
+ * node values x[]. */
+static const char *settle_static(Ctx *x, bool force, const char *probes) {
+    const Circuit *c = x->c;
+    Sx *sx = sx_new("u");
+    Lin *L = lin_new(sx, c->nnodes - 1);
+    int *ea = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    Sym *val = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + 1));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        const WNode *n = x->w->leaf_of[i];
+        int kind = ic_kind(e), p = e->n[0] - 1, q = e->n[1] - 1, k = -1;
+        Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
+        Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
+        Sym v = sym_k(0);
+        switch (kind) {
+        case IC_RES: if (n) k = lin_g(L, p, q, g); break;
+        case IC_CAP: k = lin_v(L, p, q), v = sym_ext(format("react[%d]", x->react[n->id])); break;
+        case IC_IND: k = lin_j(L, p, q), v = sym_ext(format("react[%d]", x->react[n->id])); break;
+        case IC_V: k = lin_v(L, p, q), v = drive; break;
+        case IC_I: k = lin_j(L, p, q), v = drive; break;
+        case IC_RV: k = lin_g(L, p, q, g), v = drive; break;
+        case IC_RI:
+            k = lin_g(L, p, q, g);
+            val[k] = sym_k(0);
+            k = lin_j(L, p, q), v = drive;
+            break;
+        case IC_FORCE:
+            k = lin_j(L, p, q);
+            v = force ? sx_temp(sx, format("nl_force(st, %d)", nl_index(x, e))) : sym_k(0);
+            break;
+        case IC_WAVE: k = lin_g(L, p, q, g), v = sym_ext(dbl(x, format("st->s_wpre[%d]", x->sp_of[i]))); break;
+        }
+        ea[i] = k;
+        if (k >= 0)
+            val[k] = v;
+    }
+    if (!lin_factor(L))
+        return NULL;
+    Sym *pot = arena_alloc(sizeof(Sym) * (size_t)c->nnodes), *cur = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + 1));
+    lin_solve(L, val, pot, cur);
+    bool work = x->energy && x->nsrc;
+    /* the values first, then what settle stores of them */
+    const char **lhs = arena_alloc(sizeof(char *) * (size_t)(3 * c->nelems + 1));
+    Sym *rhs = arena_alloc(sizeof(Sym) * (size_t)(3 * c->nelems + 1));
+    int nout = 0;
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        const WNode *n = x->w->leaf_of[i];
+        int kind = ic_kind(e), p = e->n[0] - 1, q = e->n[1] - 1;
+        Sym v = sx_sub(sx, p >= 0 ? pot[p] : sym_k(0), q >= 0 ? pot[q] : sym_k(0));
+        if (kind == IC_CAP || kind == IC_IND) {
+            int r = x->react[n->id];
+            Sym Ri = sx_mul(sx, sym_ext(dbl(x, format("st->c_R[%d]", n->id))), cur[ea[i]]);
+            if (kind == IC_CAP)
+                v = val[ea[i]];
+            lhs[nout] = format("st->s_a[%d]", r), rhs[nout++] = sx_add(sx, v, Ri);
+            lhs[nout] = format("st->s_b[%d]", r), rhs[nout++] = sx_sub(sx, v, Ri);
+        }
+        if (work && x->src[i] >= 0)
+            lhs[nout] = format("st->s_wi[%d]", x->src[i]), rhs[nout++] = kind == IC_V || kind == IC_RV ? cur[ea[i]] : v;
+    }
+    for (int k = 0; k < nout; k++)
+        sx_stmt(sx, format("    %s = (real)%s;\n", lhs[k], sx_use(sx, rhs[k])));
+    if (*probes) {
+        Buf xs = {0};
+        for (int k = 0; k + 1 < c->nnodes; k++)
+            emit(&xs, "%s%s", k ? ", " : "", sx_use(sx, pot[k]));
+        sx_stmt(sx, c->nnodes > 1 ? format("    {\n        const double x[] = {%s};\n%s    }\n", str(&xs), probes)
+                                  : format("    {\n%s    }\n", probes));
+    }
+    Buf o = {0};
+    sx_code(sx, &o);
+    const char *body = str(&o);
+    return format("/* A consistent Kirchhoff state for the given reactance values (v of each\n"
+                  " * capacitor, i of each inductor) and the sources' last drives: the\n"
+                  " * network with capacitors as voltage sources and inductors as current\n"
+                  " * sources, solved as the compiler eliminated it; the waves of the last\n"
+                  " * sample are set from it. */\n"
+                  "static int settle(state *st, const double *react%s) {\n%s    return 0;\n}\n",
+                  uses(body, "react") ? "" : " UNUSED", body);
+}
+
 static const char *ic_table(Ctx *x, int *nv) {
     const Circuit *c = x->c;
     Buf b = {0};
@@ -1455,23 +1688,8 @@ static const char *ic_table(Ctx *x, int *nv) {
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         WNode *n = x->w->leaf_of[i];
-        int kind;
-        switch (e->kind) {
-        case E_R: kind = IC_RES; break;
-        case E_C: kind = IC_CAP; break;
-        case E_L: kind = IC_IND; break;
-        case E_V: kind = e->val ? IC_RV : IC_V; break;
-        case E_I: kind = e->val ? IC_RI : IC_I; break;
-        case E_NL: kind = e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? IC_FORCE : IC_OPEN; break;
-        case E_W: kind = IC_RES; break; /* an empty line looks like its Z0 */
-        case E_S: kind = IC_WAVE; break; /* its last incoming wave behind its port resistance */
-        default: unreachable();
-        }
+        int kind = ic_kind(e), nli = nl_index(x, e);
         *nv += kind == IC_CAP || kind == IC_V;
-        int nli = -1;
-        for (int k = 0; k < x->nnl; k++)
-            if (nl_elem(x, k) == e)
-                nli = k;
         emit(&b, "%s{%s, %d, %d, %d, %d, %d}", i ? ", " : "", ic_code(kind), e->n[0], e->n[1], n ? n->id : -1,
              e->kind == E_S ? x->sp_of[i] : n ? x->react[n->id] : nli, x->src[i]);
     }
@@ -1661,6 +1879,13 @@ static void index_tree(Ctx *x) {
         x->mzero[b] = root_zeros(&w->roots[b]);
         x->nM += w->roots[b].nedge * w->roots[b].nedge;
     }
+    x->rfn = arena_alloc(sizeof(char *) * (size_t)(w->nroots + 1));
+    x->mnum = arena_alloc(sizeof(bool *) * (size_t)(w->nroots + 1));
+    x->mval = arena_alloc(sizeof(double *) * (size_t)(w->nroots + 1));
+    x->msym = arena_alloc(sizeof(Sym *) * (size_t)(w->nroots + 1));
+    x->rsx = arena_alloc(sizeof(Sx *) * (size_t)(w->nroots + 1));
+    for (int b = 0; b < w->nroots; b++)
+        root_static(x, b);
     x->nl_root = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
     x->nl_edge = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
     for (int b = 0; b < w->nroots; b++)
@@ -1963,8 +2188,8 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
 static void reset_holes(Ctx *x, Holes *t, const char *dirty, const char *rest, const char *kirch, const char *cases) {
     const char *react = x->settle && x->nreact ? format("    double react[%d] = {0};\n", x->nreact) : "";
     const char *st = "    state *st = vst;\n";
-    const char *reset = with_st(st, format("%s%s%s%s%s", uses(rest, "p") ? "    const double *p = st->p;\n" : "", react,
-                                           dirty, clears(x), rest));
+    const char *reset = with_st(st, format("%s%s%s%s%s", uses(rest, "p") ? "    const double *p = st->p;\n" : "",
+                                           uses(rest, "react") ? react : "", dirty, clears(x), rest));
     set(t, "reset_args", uses(reset, "vst") ? "void *vst" : "void *vst UNUSED");
     set(t, "reset", reset);
     const char *sw = *cases ? format("        switch (ids[k]) {\n%s        }\n", cases) : "";
@@ -2054,15 +2279,33 @@ static const char *codes(const char *text) {
     return str(&b);
 }
 
+/* text with each run of blank lines (holes left empty) made one. */
+static const char *one_blank(const char *text) {
+    char *s = arena_strdup(text), *o = s;
+    for (const char *p = text; *p; p++)
+        if (!(*p == '\n' && o - s >= 2 && o[-1] == '\n' && o[-2] == '\n'))
+            *o++ = *p;
+    *o = 0;
+    return s;
+}
+
 int emit_voice(const Wdf *w, const EmitOpts *opt) {
     Ctx x = {.w = w, .c = w->c, .single = opt->single, .energy = opt->energy, .opt = opt};
     const Circuit *c = w->c;
     index_tree(&x);
     x.settle = x.nreact || x.nnl || x_probes(c) || (x.energy && x.nsrc);
     Buf update = {0}, reset = {0}, probes = {0}, energy = {0}, kirch = {0}, targets = {0}, cases = {0};
-    emit_update(&x, &update);
     emit_sample(&x);
     emit_hoist(&x);
+    {
+        /* what process names decides what the roots' solves store */
+        Names live = {0};
+        Buf d = {0}, wb = {0}, fl = {0};
+        sample_text(&x, &live);
+        print_locals(&x, &live, &d, &wb, &fl);
+        root_fns(&x, &live);
+    }
+    emit_update(&x, &update);
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);
     emit_ic_cases(&x, &targets, &cases);
@@ -2088,14 +2331,16 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     int ncore = 0, nicn = c->nnodes - 1 + nicv, nports = 0, nsrcs = 0;
     for (int b = 0; b < w->nroots; b++) {
         const Root *r = &w->roots[b];
-        ncore = r->ncore + r->nv > ncore ? r->ncore + r->nv : ncore;
+        if (!x.rfn[b]) /* a root with the general solve */
+            ncore = r->ncore + r->nv > ncore ? r->ncore + r->nv : ncore;
         nports += r->nport;
         nsrcs += r->nedge - r->nport - r->nnl;
     }
     Buf rdesc = {0};
     const char *rtab = root_table(&x, &rdesc);
-    /* the solve workspace: root_solve's and, when there is one, settle's */
-    int nd = x.settle && nicn > ncore ? nicn : ncore;
+    /* the solve workspace: the general root_solve's and settle's, if any */
+    const char *fast = x.settle ? settle_static(&x, force.len > 0, str(&probes)) : NULL;
+    int nd = x.settle && !fast && nicn > ncore ? nicn : ncore;
     const char *real = opt->single ? "float" : "double";
     const char *options = format("precision %s%s, rate %g Hz by default", real, x.energy ? ", energy" : "", c->rate);
     const char *summary = format("%d elements, %d nodes; %d adaptors and leaves under %d root adaptors with %d "
@@ -2125,8 +2370,15 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     };
     for (int i = 0; i < (int)(sizeof fixed / sizeof fixed[0]); i++)
         set(&t, fixed[i].name, fixed[i].text);
-    set(&t, "solve", w->nroots ? fill_with(tmpl_root, &t) : "");
-    set(&t, "settle", x.settle ? fill_with(tmpl_settle, &t) : "");
+    Buf solve = {0};
+    bool general = false;
+    for (int b = 0; b < w->nroots; b++) {
+        general |= !x.rfn[b];
+        if (x.rfn[b] && *x.rfn[b])
+            emit(&solve, "\n%s", fill_with(x.rfn[b], &t));
+    }
+    set(&t, "solve", format("%s%s", general ? fill_with(tmpl_root, &t) : "", str(&solve)));
+    set(&t, "settle", fast ? fast : x.settle ? fill_with(tmpl_settle, &t) : "");
     /* the helpers the rest of the voice names */
     set(&t, "wg_kernels", "");
     set(&t, "helpers", "");
@@ -2136,8 +2388,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     set(&t, "wg_kernels", str(&wgk));
     set(&t, "helpers", helpers(bare, str(&wgk)));
     set(&t, "codes", codes(format("%s%s", bare, str(&wgk))));
-    const char *ctext = fill_with(tmpl_voice_c, &t);
-    const char *htext = fill_with(tmpl_voice_h, &t);
+    const char *ctext = one_blank(fill_with(tmpl_voice_c, &t));
+    const char *htext = one_blank(fill_with(tmpl_voice_h, &t));
     if (write_text(format("%s/%s.c", opt->outdir, c->name), ctext) ||
         write_text(format("%s/%s.h", opt->outdir, c->name), htext) ||
         write_text(format("%s/wdvoice.h", opt->outdir), tmpl_wdvoice_h))

@@ -67,6 +67,13 @@ void *arena_alloc(size_t n);
 char *arena_strdup(const char *s);
 char *arena_strndup(const char *s, size_t n);
 char *format(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+/* Text that grows (in the arena): buf_add appends printf-style. */
+typedef struct Buf {
+    char *s;
+    size_t len, cap;
+} Buf;
+void buf_add(Buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void buf_vadd(Buf *b, const char *fmt, va_list ap);
 /* The whole of a regular file of at most 16 MiB, NUL-terminated, in the
  * arena (*len its length); NULL with errno set otherwise (EINVAL: not a
  * regular file, EFBIG: too large). */

@@ -241,3 +241,27 @@ int mkdir_p(const char *path) {
         return -1;
     return 0;
 }
+
+void buf_vadd(Buf *b, const char *fmt, va_list ap) {
+    va_list aq;
+    va_copy(aq, ap);
+    int n = vsnprintf(NULL, 0, fmt, aq);
+    va_end(aq);
+    if (b->len + (size_t)n + 1 > b->cap) {
+        size_t cap = (b->cap + (size_t)n + 1) * 2;
+        char *s = arena_alloc(cap);
+        if (b->len)
+            memcpy(s, b->s, b->len);
+        b->s = s;
+        b->cap = cap;
+    }
+    vsnprintf(b->s + b->len, (size_t)n + 1, fmt, ap);
+    b->len += (size_t)n;
+}
+
+void buf_add(Buf *b, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    buf_vadd(b, fmt, ap);
+    va_end(ap);
+}

@@ -158,12 +158,12 @@ static Seeds seeds_load(void) {
 
 /* ---- the text being mutated ---- */
 
-typedef struct Buf {
+typedef struct Text {
     char *p;
     size_t len, cap;
-} Buf;
+} Text;
 
-static void buf_reserve(Buf *b, size_t n) {
+static void buf_reserve(Text *b, size_t n) {
     if (b->len + n + 1 <= b->cap)
         return;
     while (b->len + n + 1 > b->cap)
@@ -172,7 +172,7 @@ static void buf_reserve(Buf *b, size_t n) {
     assert_non_null(b->p);
 }
 
-static void buf_insert(Buf *b, size_t at, const char *s, size_t n) {
+static void buf_insert(Text *b, size_t at, const char *s, size_t n) {
     buf_reserve(b, n);
     memmove(b->p + at + n, b->p + at, b->len - at);
     memcpy(b->p + at, s, n);
@@ -180,7 +180,7 @@ static void buf_insert(Buf *b, size_t at, const char *s, size_t n) {
     b->p[b->len] = '\0';
 }
 
-static void buf_delete(Buf *b, size_t at, size_t n) {
+static void buf_delete(Text *b, size_t at, size_t n) {
     if (at + n > b->len)
         n = b->len - at;
     memmove(b->p + at, b->p + at + n, b->len - at - n);
@@ -221,13 +221,13 @@ static const char *lines_of(const Seeds *s, Rng *r, size_t *n) {
 }
 
 /* Start of the line holding position at, and the start of the next. */
-static size_t line_start(const Buf *b, size_t at) {
+static size_t line_start(const Text *b, size_t at) {
     while (at > 0 && b->p[at - 1] != '\n')
         at--;
     return at;
 }
 
-static size_t line_next(const Buf *b, size_t at) {
+static size_t line_next(const Text *b, size_t at) {
     while (at < b->len && b->p[at] != '\n')
         at++;
     return at < b->len ? at + 1 : at;
@@ -238,7 +238,7 @@ static bool word_char(char c) {
            c == '_' || c == '.';
 }
 
-static void mutate(Buf *b, const Seeds *s, Rng *r, bool allow_nul) {
+static void mutate(Text *b, const Seeds *s, Rng *r, bool allow_nul) {
     size_t at = b->len ? rng_below(r, b->len + 1) : 0;
     switch (rng_below(r, 16)) {
     case 0: /* flip one bit */
@@ -583,7 +583,7 @@ static const char *run_one(const char *text, size_t len, bool as_file, Stats *st
 }
 
 /* Builds the input of iteration i (reproducible from seed and i alone). */
-static void make_input(const Seeds *s, uint64_t seed, long i, Buf *b, bool *as_file) {
+static void make_input(const Seeds *s, uint64_t seed, long i, Text *b, bool *as_file) {
     Rng r = {seed * 0x2545f4914f6cdd1dull ^ (uint64_t)i * 0x9e3779b97f4a7c15ull};
     rng_next(&r);
     *as_file = rng_below(&r, 40) == 0;
@@ -602,7 +602,7 @@ static void make_input(const Seeds *s, uint64_t seed, long i, Buf *b, bool *as_f
 static bool save_each;
 
 static void run_range(const Seeds *s, uint64_t seed, long from, long to, Stats *st, bool verbose) {
-    Buf b = {0};
+    Text b = {0};
     for (long i = from; i < to; i++) {
         bool as_file;
         cur_iter = i;

@@ -664,12 +664,12 @@ static void out_of_memory_at_every_allocation(void **state)
 
 /* ---- fuzzing ---- */
 
-typedef struct Buf {
+typedef struct GrowBuf {
     char *p;
     size_t len, cap;
-} Buf;
+} GrowBuf;
 
-static void buf_insert(Buf *b, size_t at, const char *s, size_t n)
+static void buf_insert(GrowBuf *b, size_t at, const char *s, size_t n)
 {
     if (b->len + n + 1 > b->cap) {
         while (b->len + n + 1 > b->cap)
@@ -683,7 +683,7 @@ static void buf_insert(Buf *b, size_t at, const char *s, size_t n)
     b->p[b->len] = '\0';
 }
 
-static void buf_delete(Buf *b, size_t at, size_t n)
+static void buf_delete(GrowBuf *b, size_t at, size_t n)
 {
     if (at + n > b->len)
         n = b->len - at;
@@ -692,10 +692,10 @@ static void buf_delete(Buf *b, size_t at, size_t n)
     b->p[b->len] = '\0';
 }
 
-static void buf_puts(Buf *b, const char *s) { buf_insert(b, b->len, s, strlen(s)); }
+static void buf_puts(GrowBuf *b, const char *s) { buf_insert(b, b->len, s, strlen(s)); }
 
 /* Writes the forms from x on, each list as "(a b c)", strings escaped. */
-static void serialise(Buf *b, const sx *x, const char *sep)
+static void serialise(GrowBuf *b, const sx *x, const char *sep)
 {
     for (; x; x = x->next) {
         if (x->kind == SX_LIST) {
@@ -806,7 +806,7 @@ static void check_positions(const Fuzz *z, const sx *x, int depth)
 
 static void check_roundtrip(const Fuzz *z, const sx_doc *d)
 {
-    Buf b = {0}, b2 = {0};
+    GrowBuf b = {0}, b2 = {0};
     buf_puts(&b, "");
     serialise(&b, d->forms, "\n");
     static char err[1 << 20];
@@ -879,7 +879,7 @@ static const char *const dict[] = {
 
 static size_t below(tl_rng *r, size_t n) { return n ? (size_t)(tl_rng_next(r) % n) : 0; }
 
-static void mutate(Buf *b, tl_rng *r)
+static void mutate(GrowBuf *b, tl_rng *r)
 {
     size_t at = below(r, b->len + 1);
     switch (below(r, 11)) {
@@ -944,7 +944,7 @@ static void mutate(Buf *b, tl_rng *r)
 }
 
 /* Random bytes, mostly from the language's own characters. */
-static void random_text(Buf *b, tl_rng *r)
+static void random_text(GrowBuf *b, tl_rng *r)
 {
     static const char chars[] = "(((())))\"\\;\n \t.-+0123456789ekmMabc";
     b->len = 0;
@@ -967,7 +967,7 @@ static void fuzz(void **state)
     long iters = env_long("WDRT_FUZZ_ITERS", 50000);
     tl_rng r;
     tl_rng_seed(&r, (uint64_t)env_long("WDRT_FUZZ_SEED", 1));
-    Buf b = {0};
+    GrowBuf b = {0};
     for (size_t i = 0; i < 3; i++) /* the seeds themselves parse */
         sx_free(parse_ok(seeds[i]));
     for (long it = 0; it < iters; it++) {
