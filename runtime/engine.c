@@ -1237,6 +1237,7 @@ static void resolve(wdrt_engine *e, uint64_t t0, int nb) {
             x->off = (int)(x->frame - t0);
         }
         e->s.events++;
+        e->s.designs += x->type == EV_DESIGN;
         dispatch(e, x);
     }
 }

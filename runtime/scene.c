@@ -2283,6 +2283,27 @@ static const scparam *motion_set(const wdrt_scene *S, int vi, int j) {
 
 /* Posts one scene event; a play goes in parts (the play, its sets, its
  * strike), all at its frame. */
+/* A param whose change redesigns part of voice vi's class (a string's
+ * loop): posted with its design made here, on the thread that posts, so
+ * the block that plays it does not make it (and the engine's budget does
+ * not count it). */
+static int designs(const render *R, int vi, int id) {
+    const wdv_class *c = R->S->voices[vi].cls;
+    return c && c->prepare && id >= 0 && id < c->n_params && (c->params[id].flags & WDV_PARAM_STEP);
+}
+
+/* Set s (from 1) of a play: its own sets, then its voice's params bound
+ * to motion; 0 for a bound one the play sets itself. */
+static int play_set(const render *R, const scevent *x, int s, double J, int *id, double *val) {
+    const scparam *q = s <= x->nsets ? &x->sets[s - 1] : motion_set(R->S, x->voice, s - 1 - x->nsets);
+    for (int j = 0; s > x->nsets && j < x->nsets; j++)
+        if (x->sets[j].id == q->id)
+            return 0; /* a play's own set wins over the param's binding */
+    *id = q->id;
+    *val = q->val.motion ? motion_at(R->S, q->val.motion, x->time, J) : q->val.v;
+    return 1;
+}
+
 static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
     wdrt_engine *e = R->e;
     if (x->kind == SE_HIT || x->kind == SE_CONTACT)
@@ -2302,6 +2323,8 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
         }
         if (x->set.val.motion)
             return wdrt_engine_set(e, f, v, x->set.id, motion_at(R->S, x->set.val.motion, x->time, 0));
+        if (designs(R, x->voice, x->set.id))
+            return wdrt_engine_set_prepared(e, f, v, 1, &x->set.id, &x->set.val.v);
         return wdrt_engine_set(e, f, v, x->set.id, x->set.val.v);
     case SE_GAIN:
         if (x->set.val.curve) {
@@ -2322,20 +2345,26 @@ static wdrt_result post_event(render *R, const scevent *x, uint64_t f) {
                 return r;
             R->si = 1;
         }
-        /* the play's own sets, then the params bound to motion, at the time */
+        /* the play's own sets, then the params bound to motion, at the
+         * time; those that redesign the voice together, with their design */
         double J = x->kind == SE_IMPACT ? impact_impulse(R->S, x) : 0;
-        int nm = motion_sets(R->S, x->voice);
-        for (; R->si <= x->nsets + nm; R->si++) {
-            const scparam *q = R->si <= x->nsets ? &x->sets[R->si - 1] : motion_set(R->S, x->voice, R->si - 1 - x->nsets);
-            int own = 0; /* a play's own set wins over the param's binding */
-            for (int j = 0; R->si > x->nsets && j < x->nsets; j++)
-                own |= x->sets[j].id == q->id;
-            if (own)
-                continue;
-            double val = q->val.motion ? motion_at(R->S, q->val.motion, x->time, J) : q->val.v;
-            if ((r = wdrt_engine_set(e, f, R->note, q->id, val)) != WDRT_OK)
+        int total = x->nsets + motion_sets(R->S, x->voice), id;
+        double val;
+        for (; R->si <= total; R->si++)
+            if (play_set(R, x, R->si, J, &id, &val) && !designs(R, x->voice, id) &&
+                (r = wdrt_engine_set(e, f, R->note, id, val)) != WDRT_OK)
                 return r;
+        if (R->si == total + 1) {
+            int n = 0;
+            for (int s = 1; s <= total && n < WDRT_STRIKE_MAX; s++)
+                if (play_set(R, x, s, J, &ids[n], &vals[n]) && designs(R, x->voice, ids[n]))
+                    n++;
+            if (n && (r = wdrt_engine_set_prepared(e, f, R->note, n, ids, vals)) != WDRT_OK)
+                return r;
+            R->si++;
         }
+        for (int k = 0; k < x->npairs; k++)
+            ids[k] = x->pairs[k].id, vals[k] = x->pairs[k].value;
         if (x->npairs && (r = wdrt_engine_strike(e, f, R->note, x->npairs, ids, vals)) != WDRT_OK)
             return r;
         R->si = 0;

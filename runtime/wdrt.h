@@ -327,6 +327,7 @@ typedef struct wdrt_engine_stats {
     uint64_t events;     /* events that took effect */
     uint64_t late;       /* of those, after the frame they named */
     uint64_t dropped;    /* events to notes that had ended */
+    uint64_t designs;    /* of the events, designs wdrt_engine_set_prepared made */
     uint64_t sleeps, wakes, steals, virtualized, revived;
     uint64_t cuts;       /* voices stolen with no spare to fade on */
     int sources;         /* delay lines in use (placed voices and sound in flight) */
