@@ -9,7 +9,8 @@ CFLAGS  ?= -O2 -g
 CFLAGS  += -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE -Wall -Wextra -pedantic -MMD -MP
 LDLIBS  = -llapacke -lsndfile -lmysofa -ldl -lm
 
-GEN_SRCS   = $(filter-out gen/main.c,$(wildcard gen/*.c))
+# the compiler: gen/ and the descriptors of the element kinds, blocks/
+GEN_SRCS   = $(filter-out gen/main.c,$(wildcard gen/*.c)) $(wildcard blocks/*.c)
 RT_SRCS    = $(filter-out runtime/wdrt_main.c,$(wildcard runtime/*.c))
 TEST_LIB   = $(filter-out tests/test_%.c,$(wildcard tests/*.c))
 TEST_SRCS  = $(wildcard tests/test_*.c)

@@ -340,14 +340,14 @@ static void emit_update(Ctx *x, Buf *o) {
                  e->pos.line, e->pos.col);
             /* a reactance a param moves is retuned; one that none moves
              * is set once, in init, from a cleared state */
-            if ((e->kind == E_C || e->kind == E_L) && n->pmask)
-                emit(o, "        retune(st, %d, %d, %s, %d);\n", n->id, x->react[n->id],
-                     e->kind == E_C ? format("T / (2 * %s)", v) : format("2 * %s / T", v), e->kind == E_C);
-            else if (e->kind == E_C || e->kind == E_L)
-                emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id,
-                     e->kind == E_C ? format("T / (2 * %s)", v) : format("2 * %s / T", v));
+            const Prim *pr = &prims[e->kind];
+            if (pr->state && n->pmask)
+                emit(o, "        retune(st, %d, %d, %s, %d);\n", n->id, x->react[n->id], prim_port_text(e, v),
+                     pr->state == 'C');
+            else if (pr->state)
+                emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id, prim_port_text(e, v));
             else
-                emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, v);
+                emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, prim_port_text(e, v));
             continue;
         }
         emit(o, "    %s { /* %s adaptor */\n", guard(n->pmask), n->kind == W_SERIES ? "series" : "parallel");
@@ -503,26 +503,29 @@ static void emit_forward(Ctx *x) {
         const char *tb = format("t_b%d", i);
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
-            switch (e->kind) {
-            case E_R: x->b[i] = "0"; break;
-            case E_C: x->b[i] = format("s_a%d", x->react[i]); break;
-            case E_L:
+            switch (prims[e->kind].wd) {
+            case WD_ADAPTED: x->b[i] = "0"; break;
+            case WD_HOLD: x->b[i] = format("s_a%d", x->react[i]); break;
+            case WD_HOLD_NEG:
                 put(x, tb, "        const real t_b%d = -s_a%d; /* %s */\n", i, x->react[i], e->name);
                 x->b[i] = tb;
                 break;
-            case E_V: x->b[i] = drive_of(x, e); break;
-            case E_I:
+            case WD_SOURCE:
+                if (e->kind == E_V) {
+                    x->b[i] = drive_of(x, e);
+                    break;
+                }
                 put(x, tb, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
                 x->b[i] = tb;
                 break;
-            case E_W: {
+            case WD_DELAY: {
                 int k = x->line_of[n->elem];
                 put(x, tb, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
                     x->dl_off[e->peer], k, x->dl_size[k] - 1, e->name);
                 x->b[i] = tb;
                 break;
             }
-            case E_S: {
+            case WD_WAVEGUIDE: {
                 int w = e->wg, m = x->wv_size[w] - 1;
                 const Waveguide *g = &x->c->wgs[w];
                 if (e->side == 0)
@@ -542,7 +545,7 @@ static void emit_forward(Ctx *x) {
                 }
                 break;
             }
-            case E_NL: unreachable();
+            case WD_ROOT: unreachable();
             }
             continue;
         }
@@ -893,14 +896,14 @@ static void emit_backward(Ctx *x) {
         if (n->kind == W_LEAF) {
             const Elem *e = &x->c->elems[n->elem];
             x->bpost[i] = b;
-            if (e->kind == E_C || e->kind == E_L) {
+            if (prims[e->kind].state) {
                 int r = x->react[i];
                 put(x, NULL, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
-            } else if (e->kind == E_W) {
+            } else if (prims[e->kind].wd == WD_DELAY) {
                 put(x, NULL, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
                     x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
-            } else if (e->kind == E_S) {
+            } else if (prims[e->kind].wd == WD_WAVEGUIDE) {
                 int open[64], nopen, tk = tap_kind(x, n->elem, open, &nopen);
                 if (tk == 1) {
                     /* nothing else meets here: the wave passes untouched */
@@ -1340,7 +1343,7 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
         int r = x->react[i];
         if (r < 0)
             continue;
-        bool cap = x->c->elems[x->w->nodes[i]->elem].kind == E_C;
+        bool cap = prims[x->c->elems[x->w->nodes[i]->elem].kind].state == 'C';
         const char *R = dbl(x, format("st->c_R[%d]", i));
         const char *v = dbl(x, format("(st->s_a[%d] + st->s_b[%d])", r, r));
         const char *j = dbl(x, format("(st->s_a[%d] - st->s_b[%d])", r, r));
@@ -1382,9 +1385,10 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                 const WNode *n = x->w->nodes[i];
                 const Elem *e = &c->elems[n->elem];
                 int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
-                if (!sg || (e->kind == E_C) != (fn == 'v'))
+                /* v(node) sets a charge, x(node) a flux */
+                if (!sg || (prims[e->kind].state == 'C') != (fn == 'v'))
                     continue;
-                if (e->kind == E_C)
+                if (prims[e->kind].state == 'C')
                     emit(&t, "            react[%d] = %svalues[k];\n", x->react[i], sg > 0 ? "" : "-");
                 else
                     emit(&t, "            react[%d] = %svalues[k] / (0.5 * %s / st->fs);\n", x->react[i],
@@ -1572,20 +1576,6 @@ static const char *root_table(Ctx *x, Buf *desc) {
     return str(&b);
 }
 
-/* How element e enters the initial-condition solve (IC_*). */
-static int ic_kind(const Elem *e) {
-    switch (e->kind) {
-    case E_R: return IC_RES;
-    case E_C: return IC_CAP;
-    case E_L: return IC_IND;
-    case E_V: return e->val ? IC_RV : IC_V;
-    case E_I: return e->val ? IC_RI : IC_I;
-    case E_NL: return e->nl->kind == NL_CONTACT || e->nl->mutated == 'L' ? IC_FORCE : IC_OPEN;
-    case E_W: return IC_RES; /* an empty line looks like its Z0 */
-    case E_S: return IC_WAVE; /* its last incoming wave behind its port resistance */
-    default: unreachable();
-    }
-}
 
 /* The nonlinear index of element e, or -1. */
 static int nl_index(Ctx *x, const Elem *e) {
@@ -1608,7 +1598,7 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         const WNode *n = x->w->leaf_of[i];
-        int kind = ic_kind(e), p = e->n[0] - 1, q = e->n[1] - 1, k = -1;
+        int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1, k = -1;
         Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
         Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
         Sym v = sym_k(0);
@@ -1646,7 +1636,7 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         const WNode *n = x->w->leaf_of[i];
-        int kind = ic_kind(e), p = e->n[0] - 1, q = e->n[1] - 1;
+        int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1;
         Sym v = sx_sub(sx, p >= 0 ? pot[p] : sym_k(0), q >= 0 ? pot[q] : sym_k(0));
         if (kind == IC_CAP || kind == IC_IND) {
             int r = x->react[n->id];
@@ -1688,7 +1678,7 @@ static const char *ic_table(Ctx *x, int *nv) {
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         WNode *n = x->w->leaf_of[i];
-        int kind = ic_kind(e), nli = nl_index(x, e);
+        int kind = prim_ic(e), nli = nl_index(x, e);
         *nv += kind == IC_CAP || kind == IC_V;
         emit(&b, "%s{%s, %d, %d, %d, %d, %d}", i ? ", " : "", ic_code(kind), e->n[0], e->n[1], n ? n->id : -1,
              e->kind == E_S ? x->sp_of[i] : n ? x->react[n->id] : nli, x->src[i]);
@@ -1863,7 +1853,7 @@ static void index_tree(Ctx *x) {
     for (int i = 0; i < w->nnodes; i++) {
         const WNode *n = w->nodes[i];
         x->react[i] = -1;
-        if (n->kind == W_LEAF && (c->elems[n->elem].kind == E_C || c->elems[n->elem].kind == E_L))
+        if (n->kind == W_LEAF && prims[c->elems[n->elem].kind].state)
             x->react[i] = x->nreact++;
         x->koff[i] = x->nk;
         if (n->kind != W_LEAF)

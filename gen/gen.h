@@ -474,6 +474,41 @@ struct WNode {
 enum {
 #include "../templates/codes.def"
 };
+
+/* blocks/primitives.c: what each primitive element is to the structure
+ * and the voice.  Realisations: */
+typedef enum {
+    WD_ADAPTED,   /* an adapted one-port that reflects nothing (a resistor) */
+    WD_HOLD,      /* reflects the wave it last took in (a capacitor, trapezoidal) */
+    WD_HOLD_NEG,  /* reflects that wave's negative (an inductor) */
+    WD_SOURCE,    /* a resistive source: reflects its drive (V) or -R times it (I) */
+    WD_ROOT,      /* joins its block's root adaptor: a nonlinear one-port */
+    WD_DELAY,     /* reflects what entered the other end of its line TD earlier */
+    WD_WAVEGUIDE, /* reflects what its string or tube brings to its point */
+} WdReal;
+
+enum { ROOT_NEVER, ROOT_IDEAL, ROOT_ALWAYS };
+
+typedef struct Prim {
+    const char *name;
+    const char *law;   /* in its value: R, C, L, e and R, j and R, Z0 */
+    WdReal wd;
+    char port;         /* its port resistance from its value v: 'v' v, 'C' 1/(2 fs v), 'L' 2 fs v */
+    char state;        /* what it stores between samples: 'C' a charge (its voltage), 'L' a flux (its current), 0 nothing */
+    int root;          /* ROOT_*: when it joins the root adaptor (ROOT_IDEAL: without a resistance) */
+    int ic, ic_resistive; /* how it enters the initial-condition solve (IC_*), ideal and with a resistance */
+} Prim;
+
+extern const Prim prims[]; /* by ElemKind */
+
+/* Whether e cannot be adapted and joins its block's root adaptor. */
+bool prim_at_root(const Elem *e);
+/* e's port resistance for value v at rate fs. */
+double prim_port(const Elem *e, double v, double fs);
+/* The same as C text of the value's text v (T: the sample period). */
+const char *prim_port_text(const Elem *e, const char *v);
+/* How e enters the initial-condition solve (IC_*). */
+int prim_ic(const Elem *e);
 #undef CODE
 
 /* One edge of the root adaptor: a subtree's port or an ideal source. */

@@ -29,7 +29,7 @@ typedef struct Edge {
 
 /* Ideal sources and nonlinear elements cannot be adapted: they go to the
  * root. */
-static bool at_root(const Elem *e) { return ((e->kind == E_V || e->kind == E_I) && !e->val) || e->kind == E_NL; }
+static bool at_root(const Elem *e) { return prim_at_root(e); }
 
 static int cmp_int(const void *a, const void *b) {
     int x = *(const int *)a, y = *(const int *)b;
@@ -37,12 +37,7 @@ static int cmp_int(const void *a, const void *b) {
 }
 
 static double leaf_R(const Circuit *c, const Elem *e, const double *p, double fs) {
-    double v = elem_value(c, e, p);
-    switch (e->kind) {
-    case E_C: return 1 / (2 * fs * v);
-    case E_L: return 2 * fs * v;
-    default: return v;
-    }
+    return prim_port(e, elem_value(c, e, p), fs);
 }
 
 static WNode *new_node(WKind k, int u, int w) {

@@ -1,0 +1,54 @@
+/*
+ * primitives.c - the primitive elements every element kind lowers to, as
+ * the wave-digital structure and the voice see them: each one's law, how
+ * it is realised (its port resistance from its value, the wave it
+ * reflects), what it stores, and how it enters the initial-condition
+ * solve.  The kinds of the netlist (the other files here) say which of
+ * these they become.
+ */
+#include "gen.h"
+
+const Prim prims[] = {
+    [E_R] = {"resistor", "v = R i", WD_ADAPTED, 'v', 0, ROOT_NEVER, IC_RES, IC_RES},
+    [E_C] = {"capacitor", "i = C dv/dt", WD_HOLD, 'C', 'C', ROOT_NEVER, IC_CAP, IC_CAP},
+    [E_L] = {"inductor", "v = L di/dt", WD_HOLD_NEG, 'L', 'L', ROOT_NEVER, IC_IND, IC_IND},
+    [E_V] = {"voltage source", "v = e + R i; ideal without R", WD_SOURCE, 'v', 0, ROOT_IDEAL, IC_V, IC_RV},
+    [E_I] = {"current source", "i = j + v / R; ideal without R", WD_SOURCE, 'v', 0, ROOT_IDEAL, IC_I, IC_RI},
+    /* a contact or a nonlinear inductor holds a force (IC_FORCE, see
+     * prim_ic); a diode or curve at rest carries no current */
+    [E_NL] = {"nonlinear one-port", "i = g(v), or the law of a stored coordinate (NlSpec)", WD_ROOT, 'v', 0,
+              ROOT_ALWAYS, IC_OPEN, IC_OPEN},
+    /* an empty line looks like its Z0 to the initial-condition solve */
+    [E_W] = {"line end", "b(t) = a(t - TD) entered at the other end; port Z0", WD_DELAY, 'v', 0, ROOT_NEVER, IC_RES,
+             IC_RES},
+    /* its last incoming wave behind its port resistance */
+    [E_S] = {"waveguide port", "b = the wave the string or tube brings; port its impedance", WD_WAVEGUIDE, 'v', 0,
+             ROOT_NEVER, IC_WAVE, IC_WAVE},
+};
+
+bool prim_at_root(const Elem *e) {
+    const Prim *p = &prims[e->kind];
+    return p->root == ROOT_ALWAYS || (p->root == ROOT_IDEAL && !e->val);
+}
+
+double prim_port(const Elem *e, double v, double fs) {
+    switch (prims[e->kind].port) {
+    case 'C': return 1 / (2 * fs * v);
+    case 'L': return 2 * fs * v;
+    default: return v;
+    }
+}
+
+const char *prim_port_text(const Elem *e, const char *v) {
+    switch (prims[e->kind].port) {
+    case 'C': return format("T / (2 * %s)", v);
+    case 'L': return format("2 * %s / T", v);
+    default: return v;
+    }
+}
+
+int prim_ic(const Elem *e) {
+    if (e->kind == E_NL && (e->nl->kind == NL_CONTACT || e->nl->mutated == 'L'))
+        return IC_FORCE;
+    return e->val ? prims[e->kind].ic_resistive : prims[e->kind].ic;
+}
