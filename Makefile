@@ -212,7 +212,7 @@ soak: build/tests/test_sexp build/tests/test_scene build/tests/test_tree
 .PHONY: soak
 
 format:
-	clang-format -i gen/*.c gen/*.h runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c bench/*.h
+	clang-format -i gen/*.c gen/*.h blocks/*.c runtime/*.c runtime/*.h tests/*.c tests/*.h bench/*.c bench/*.h
 
 clean:
 	rm -rf build bin out

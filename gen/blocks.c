@@ -1,11 +1,11 @@
-/* blocks.c: the element registry, from blocks/blocks.def. */
+/* blocks.c: the element registry, from blocks/blocks.def and the
+ * descriptors in blocks/. */
 #include <ctype.h>
 #include <string.h>
 
-#include "gen.h"
+#include "lower.h"
 
-#define BLOCK(id, kw, letter, nnodes, args, keys, ready, desc) \
-    [id] = {kw, letter, nnodes, args, keys, ready, desc},
+#define BLOCK(id, kind) [id] = {kind.desc, &kind},
 const BlockDesc block_desc[BK_COUNT] = {
 #include "../blocks/blocks.def"
 };
@@ -13,7 +13,7 @@ const BlockDesc block_desc[BK_COUNT] = {
 
 int block_by_keyword(const char *s, int len) {
     for (int i = 0; i < BK_COUNT; i++) {
-        const char *kw = block_desc[i].keyword;
+        const char *kw = block_desc[i].kind->keyword;
         if (kw && (int)strlen(kw) == len && !strncmp(kw, s, (size_t)len))
             return i;
     }
@@ -21,23 +21,17 @@ int block_by_keyword(const char *s, int len) {
 }
 
 int block_by_letter(char c) {
-    for (int i = 0; i < BK_COUNT; i++)
-        if (block_desc[i].letter && block_desc[i].letter == toupper((unsigned char)c))
+    for (int i = 0; i < BK_COUNT; i++) {
+        char letter = block_desc[i].kind->letter;
+        if (letter && letter == toupper((unsigned char)c))
             return i;
+    }
     return -1;
 }
 
 bool block_has_key(int kind, const char *key) {
-    const char *k = block_desc[kind].keys;
-    size_t n = strlen(key);
-    while (*k) {
-        const char *e = strchr(k, ' ');
-        size_t len = e ? (size_t)(e - k) : strlen(k);
-        if (len == n && !strncmp(k, key, n))
+    for (const KindKey *k = block_desc[kind].kind->keys; k->name; k++)
+        if (!strcmp(k->name, key))
             return true;
-        if (!e)
-            break;
-        k = e + 1;
-    }
     return false;
 }

@@ -1,11 +1,10 @@
 /* elab.c: syntax lines -> Circuit.
  *
- * Includes are expanded and blocks instantiated; every element is lowered
- * to the primitive kinds R, C, L, V, I in SI units.  Mechanical elements
- * follow the mobility analogy (velocity = voltage, force = current): a
- * mass is a capacitor to ground (C = m), a spring an inductor (L = 1/k), a
- * damper a resistor (R = 1/c), a force a current source, a velocity a
- * voltage source.  A pot is two resistors, "P.aw" and "P.wb". */
+ * Includes are expanded and blocks instantiated; every element line is
+ * lowered by its kind's descriptor (blocks/, through lower.h) to primitive
+ * elements in SI units.  This file keeps what every kind shares: names,
+ * nodes and scopes, values and their checks, models, and the checks of
+ * the whole circuit. */
 #include <ctype.h>
 #include <errno.h>
 #include <limits.h>
@@ -14,7 +13,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "gen.h"
+#include "lower.h"
 
 typedef struct BlockDef {
     const char *name;
@@ -34,17 +33,6 @@ typedef struct Scope {
     struct Scope *parent;
     SrcPos usepos;        /* the instance name on its `use` line */
 } Scope;
-
-/* mutator X a b c d type=RC|RL: the nonlinear resistor across (c, d)
- * appears at (a, b) as a nonlinear capacitor (RC: q = g(v)) or inductor
- * (RL: i = g(flux)). */
-typedef struct Mutator {
-    const char *name;
-    int n[4];
-    char type;     /* 'C' or 'L' */
-    SrcPos pos;
-    Line *line;
-} Mutator;
 
 typedef struct Elab {
     Circuit *c;
@@ -70,6 +58,13 @@ typedef struct Elab {
     bool have_voice, have_domain, have_rate;
     SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
 } Elab;
+
+/* What a kind's lowering works on: the elaboration, and the scope of the
+ * line it lowers. */
+struct Lower {
+    Elab *E;
+    Scope *S;
+};
 
 /* ---- names ---- */
 
@@ -177,6 +172,8 @@ static int node_of(Elab *E, Scope *S, const char *name, SrcPos pos, bool create)
     return E->nodes.len - 1;
 }
 
+int lower_node(Lower *L, const char *name, SrcPos pos) { return node_of(L->E, L->S, name, pos, true); }
+
 /* ---- expressions ---- */
 
 static Expr *resolve(Elab *E, Scope *S, Expr *e);
@@ -216,11 +213,11 @@ static Expr *resolve(Elab *E, Scope *S, Expr *e) {
     return r;
 }
 
-static Expr *value_expr(Elab *E, Scope *S, const Value *v, const char *what) {
+Expr *lower_value(Lower *L, const Value *v, const char *what) {
     if (v->kind == VAL_EXPR)
-        return resolve(E, S, v->expr);
+        return resolve(L->E, L->S, v->expr);
     if (v->kind == VAL_NAME)
-        return lookup_name(E, S, v->name, v->pos);
+        return lookup_name(L->E, L->S, v->name, v->pos);
     error_at(v->pos, "expected a number, {expression} or param name for %s", what);
 }
 
@@ -392,7 +389,7 @@ static bool has_names(const Expr *e) {
 
 /* A value that must be known at compile time: a number or a braced
  * expression of numbers, never of params. */
-static double const_number(const Value *v, const char *what) {
+double lower_const(const Value *v, const char *what) {
     if (v->kind != VAL_EXPR || has_names(v->expr))
         error_at(v->pos, "%s must be a number (params are not known at compile time)", what);
     double x = expr_eval(v->expr, NULL);
@@ -411,7 +408,8 @@ static double const_number(const Value *v, const char *what) {
 
 /* Refuses x at pos unless |x| <= MAX_MAGNITUDE at the default params and
  * with each param it reads alone at either finite bound. */
-static void check_magnitude(Elab *E, const Expr *x, SrcPos pos, const char *what, const char *unit) {
+void lower_magnitude(Lower *L, const Expr *x, SrcPos pos, const char *what, const char *unit) {
+    Elab *E = L->E;
     double *p = arena_alloc(sizeof(double) * (size_t)(E->params.len + 1));
     for (int j = 0; j < E->params.len; j++)
         p[j] = ((Param *)E->params.data[j])->def;
@@ -451,7 +449,7 @@ static void dir_param(Elab *E, Line *l) {
     p->min = -INFINITY;
     p->max = INFINITY;
     const Value *v = &l->args[0];
-    p->def = const_number(v, format("the default of param '%s'", l->name));
+    p->def = lower_const(v, format("the default of param '%s'", l->name));
     SrcPos minpos = l->pos;
     for (int i = 0; i < l->nkv; i++) {
         KeyVal *k = &l->kv[i];
@@ -471,7 +469,7 @@ static void dir_param(Elab *E, Line *l) {
         }
         if (strcmp(k->key, "min") && strcmp(k->key, "max"))
             error_at(k->pos, "unknown key '%s' for .param (expected min=, max= or unit=)", k->key);
-        double x = const_number(&k->val, format("%s= of param '%s'", k->key, l->name));
+        double x = lower_const(&k->val, format("%s= of param '%s'", k->key, l->name));
         if (!strcmp(k->key, "min")) {
             p->min = x;
             minpos = k->pos;
@@ -514,7 +512,7 @@ static void dir_simple(Elab *E, Line *l) {
         E->have_domain = true;
     } else if (!strcmp(d, ".rate")) {
         const Value *v = &l->args[0];
-        c->rate = const_number(v, "the sample rate");
+        c->rate = lower_const(v, "the sample rate");
         if (!(c->rate >= 1 && c->rate <= 1e7))
             error_at(v->pos, "sample rate %g Hz is out of range (1 Hz to 10 MHz)", c->rate);
         if (E->have_rate)
@@ -551,16 +549,23 @@ static void dir_simple(Elab *E, Line *l) {
     }
 }
 
-/* ---- elements ---- */
+/* ---- elements: what a kind's lowering uses (lower.h), and element lines ---- */
 
-static KeyVal *key(Line *l, const char *k) {
+KeyVal *lower_key(Line *l, const char *k) {
     for (int i = 0; i < l->nkv; i++)
         if (!strcmp(l->kv[i].key, k))
             return &l->kv[i];
     return NULL;
 }
 
-static Elem *add_elem(Elab *E, Scope *S, Line *l, ElemKind k, const char *suffix, int n0, int n1) {
+const Value *lower_arg(const Line *l) {
+    int nn = block_desc[l->kind].kind->nnodes;
+    return nn < l->nargs ? &l->args[nn] : NULL;
+}
+
+Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int n1) {
+    Elab *E = L->E;
+    Scope *S = L->S;
     const char *name = format("%s%s%s", S->prefix, l->name, suffix);
     Elem *prev = find_elem(E, name);
     if (prev) {
@@ -584,234 +589,50 @@ static Elem *add_elem(Elab *E, Scope *S, Line *l, ElemKind k, const char *suffix
     return e;
 }
 
-static Expr *need_key(Elab *E, Scope *S, Line *l, const char *k) {
-    KeyVal *kv = key(l, k);
-    if (!kv)
-        error_at(l->namepos, "%s '%s' needs %s=", block_desc[l->kind].desc, l->name, k);
-    return value_expr(E, S, &kv->val, k);
+int lower_nelems(Lower *L) { return L->E->elems.len; }
+
+const char *lower_prefix(Lower *L) { return L->S->prefix; }
+
+double lower_rate(Lower *L) { return L->E->c->rate; }
+
+void lower_add_mutator(Lower *L, Mutator *m) { vec_push(&L->E->mutators, m); }
+
+int lower_add_waveguide(Lower *L, Waveguide *w) {
+    vec_push(&L->E->wgs, w);
+    return L->E->wgs.len - 1;
 }
 
-static void set_drive(Elab *E, Scope *S, Elem *e, const Value *v) {
+Expr *lower_need(Lower *L, Line *l, const char *k) {
+    KeyVal *kv = lower_key(l, k);
+    if (!kv)
+        error_at(l->namepos, "%s '%s' needs %s=", block_desc[l->kind].desc, l->name, k);
+    return lower_value(L, &kv->val, k);
+}
+
+Expr *lower_key_or(Lower *L, Line *l, const char *k, double def) {
+    KeyVal *kv = lower_key(l, k);
+    return kv ? lower_value(L, &kv->val, k) : expr_num(def, l->pos);
+}
+
+void lower_drive(Lower *L, Elem *e, const Value *v) {
+    Elab *E = L->E;
+    Scope *S = L->S;
     if (v->kind == VAL_NAME) {
         int in = find_input(E, v->name);
         if (in >= 0) {
             e->input = in;
             return;
         }
-        if (find_param(E, v->name) < 0 && !(S->def && key(S->def->head, v->name)))
+        if (find_param(E, v->name) < 0 && !(S->def && lower_key(S->def->head, v->name)))
             error_at(v->pos, "unknown input or param '%s' (declare inputs with .input)", v->name);
     }
-    e->drive = value_expr(E, S, v, "the drive");
-    check_magnitude(E, e->drive, v->pos, format("the drive of %s '%s'", block_desc[e->user_kind].desc, e->name),
+    e->drive = lower_value(L, v, "the drive");
+    lower_magnitude(L, e->drive, v->pos, format("the drive of %s '%s'", block_desc[e->user_kind].desc, e->name),
                     domain_unit(E->c->domain, e->kind == E_V ? 'v' : 'i'));
 }
 
-static Expr *div1(Expr *x) { return expr_bin(EX_DIV, expr_num(1, x->pos), x); }
-
-static void check_keys(Line *l) {
-    for (int i = 0; i < l->nkv; i++)
-        if (!block_has_key(l->kind, l->kv[i].key) && strcmp(l->kv[i].key, "model"))
-            error_at(l->kv[i].pos, "unknown key '%s' for %s '%s'", l->kv[i].key,
-                     block_desc[l->kind].desc, l->name);
-}
-
-static Line *find_model(Elab *E, const Value *v) {
-    if (v->kind != VAL_NAME)
-        error_at(v->pos, "expected a model name");
-    int i = map_get(&E->model_ix, v->name);
-    if (i >= 0)
-        return E->models.data[i];
-    error_at(v->pos, "unknown model '%s'", v->name);
-}
-
-/* model=NAME: the model's keys become defaults of the element's. */
-static Line *with_model(Elab *E, Line *l) {
-    KeyVal *mk = key(l, "model");
-    if (!mk)
-        return l;
-    Line *m = find_model(E, &mk->val);
-    if (m->model_kind != l->kind)
-        error_at(mk->val.pos, "model '%s' is a %s model, not a %s model", m->name,
-                 block_desc[m->model_kind].desc, block_desc[l->kind].desc);
-    Line *r = arena_alloc(sizeof(Line));
-    *r = *l;
-    r->kv = arena_alloc(sizeof(KeyVal) * (size_t)(l->nkv + m->nkv + 1));
-    r->nkv = 0;
-    for (int i = 0; i < l->nkv; i++)
-        if (strcmp(l->kv[i].key, "model"))
-            r->kv[r->nkv++] = l->kv[i];
-    for (int i = 0; i < m->nkv; i++)
-        if (!key(l, m->kv[i].key))
-            r->kv[r->nkv++] = m->kv[i];
-    return r;
-}
-
-
-static Solver solver_of(Line *l, NlSpec *nl) {
-    KeyVal *k = key(l, "solver");
-    if (!k)
-        return SOLVER_DEFAULT;
-    const char *v = k->val.kind == VAL_NAME ? k->val.name : "";
-    nl->solver_pos = k->val.pos;
-    if (!strcmp(v, "pwl"))
-        return SOLVER_PWL;
-    if (!strcmp(v, "newton"))
-        return SOLVER_NEWTON;
-    if (!strcmp(v, "omega"))
-        return SOLVER_OMEGA;
-    error_at(k->val.pos, "solver= takes pwl, newton or omega");
-}
-
-static Expr *key_or(Elab *E, Scope *S, Line *l, const char *k, double def) {
-    KeyVal *kv = key(l, k);
-    return kv ? value_expr(E, S, &kv->val, k) : expr_num(def, l->pos);
-}
-
-/* curve=(v0:i0 v1:i1 ...): points of a monotone, passive v-i curve */
-static void curve(Line *l, NlSpec *nl) {
-    KeyVal *k = key(l, "curve");
-    if (!k)
-        error_at(l->namepos, "nonlinear resistor '%s' needs curve=(v0:i0 v1:i1 ...)", l->name);
-    if (k->val.kind != VAL_LIST)
-        error_at(k->val.pos, "curve= takes a list of points in parentheses, (v0:i0 v1:i1 ...)");
-    int n = k->val.ntoks;
-    const Token *t = k->val.toks;
-    nl->cv = arena_alloc(sizeof(double) * (size_t)(n / 3 + 2));
-    nl->ci = arena_alloc(sizeof(double) * (size_t)(n / 3 + 2));
-    for (int i = 0; i < n; i += 3) {
-        if (i + 2 >= n || t[i + 1].len != 1 || t[i + 1].text[0] != ':')
-            error_at(t[i].pos, "expected a point v:i in the curve");
-        for (int j = 0; j < 3; j += 2)
-            if (t[i + j].kind != TK_NUMBER)
-                error_at(t[i + j].pos, "malformed number '%.*s' in the curve", t[i + j].len, t[i + j].text);
-        int m = nl->npts++;
-        nl->cv[m] = t[i].num;
-        nl->ci[m] = t[i + 2].num;
-        if (m > 0 && !(nl->cv[m] > nl->cv[m - 1]))
-            error_at(t[i].pos, "curve voltages must increase from point to point");
-        if (m > 0 && nl->ci[m] < nl->ci[m - 1])
-            error_at(t[i + 2].pos, "curve currents must not decrease (a falling curve has no unique wave map)");
-        if (nl->cv[m] * nl->ci[m] < 0)
-            error_at(t[i].pos, "point %g:%g delivers power: a passive curve has v*i >= 0", nl->cv[m], nl->ci[m]);
-    }
-    if (nl->npts < 2)
-        error_at(k->val.pos, "a curve needs at least two points");
-    /* the current at v = 0, on the curve or its extension, must be 0 */
-    int a = 0;
-    while (a + 2 < nl->npts && nl->cv[a + 1] < 0)
-        a++;
-    double v0 = nl->cv[a], v1 = nl->cv[a + 1];
-    double i0 = nl->ci[a] + (0 - v0) * (nl->ci[a + 1] - nl->ci[a]) / (v1 - v0);
-    if (fabs(i0) > 1e-12 * (fabs(nl->ci[0]) + fabs(nl->ci[nl->npts - 1])))
-        error_at(k->val.pos, "the curve passes v = 0 at i = %g: a passive curve goes through the origin", i0);
-}
-
-/* spring K x y curve=(x0:f0 ...) and C NAME a b curve=(v0:q0 ...): a
- * nonlinear reactance, reached through the mutator the compiler puts in
- * (R-L for a spring: force = curve(stretch); R-C for a capacitor: charge =
- * curve(voltage)); solved by Newton at its root. */
-static bool nonlinear_reactance(Elab *E, Scope *S, Line *l, const int *node) {
-    KeyVal *cv = key(l, "curve");
-    if (!cv)
-        return false;
-    const char *other = l->kind == BK_SPRING ? "k" : "C";
-    if (key(l, other) || (l->kind == BK_C && l->nargs > 2))
-        error_at(cv->pos, "%s '%s' takes a value or curve=, not both", block_desc[l->kind].desc, l->name);
-    if (key(l, "IC") || key(l, "ic"))
-        error_at((key(l, "IC") ? key(l, "IC") : key(l, "ic"))->pos, "a nonlinear %s takes no IC= (a spring's "
-                 "stretch comes from .ic x(node); a capacitor starts at rest)", block_desc[l->kind].desc);
-    Elem *e = add_elem(E, S, l, E_NL, "", node[0], node[1]);
-    NlSpec *nl = arena_alloc(sizeof(NlSpec));
-    nl->kind = NL_CURVE;
-    curve(l, nl);
-    nl->solver = SOLVER_NEWTON;
-    nl->mutated = l->kind == BK_SPRING ? 'L' : 'C';
-    e->nl = nl;
-    return true;
-}
-
-static NlSpec *nonlinear(Elab *E, Scope *S, Line *l) {
-    NlSpec *nl = arena_alloc(sizeof(NlSpec));
-    Line *src = l;
-    if (l->kind == BK_D) { /* the model's keys, then the element's own */
-        Line *m = find_model(E, &l->args[2]);
-        src = arena_alloc(sizeof(Line));
-        *src = *l;
-        src->kv = arena_alloc(sizeof(KeyVal) * (size_t)(l->nkv + m->nkv + 1));
-        src->nkv = 0;
-        for (int i = 0; i < l->nkv; i++)
-            src->kv[src->nkv++] = l->kv[i];
-        for (int i = 0; i < m->nkv; i++)
-            if (!key(l, m->kv[i].key))
-                src->kv[src->nkv++] = m->kv[i];
-    }
-    nl->solver = solver_of(src, nl);
-    switch (l->kind) {
-    case BK_D: {
-        nl->kind = NL_DIODE;
-        nl->Is = key_or(E, S, src, "Is", 1e-14);
-        nl->n = key_or(E, S, src, "n", 1);
-        nl->Vt = key_or(E, S, src, "Vt", 25.852e-3);
-        KeyVal *pk = key(src, "pair");
-        if (pk) {
-            double pv = const_number(&pk->val, "pair=");
-            if (pv != 0 && pv != 1)
-                error_at(pk->val.pos, "pair= takes 0 or 1");
-            nl->pair = pv == 1;
-        }
-        break;
-    }
-    case BK_NLRES:
-        nl->kind = NL_CURVE;
-        curve(src, nl);
-        if (nl->solver != SOLVER_DEFAULT && nl->solver != SOLVER_PWL)
-            error_at(nl->solver_pos, "a curve given by points is solved exactly by its piecewise-linear wave map: "
-                     "use solver=pwl");
-        nl->solver = SOLVER_PWL;
-        break;
-    case BK_CONTACT:
-        nl->kind = NL_CONTACT;
-        nl->k = need_key(E, S, src, "k");
-        nl->alpha = key_or(E, S, src, "alpha", 1);
-        nl->lambda = key_or(E, S, src, "lambda", 0);
-        nl->gap = key_or(E, S, src, "gap", 0);
-        if (nl->solver != SOLVER_DEFAULT && nl->solver != SOLVER_NEWTON)
-            error_at(nl->solver_pos, "a contact has memory (its compression): only solver=newton applies");
-        nl->solver = SOLVER_NEWTON;
-        break;
-    }
-    if (nl->solver == SOLVER_OMEGA && nl->kind != NL_DIODE)
-        error_at(nl->solver_pos, "solver=omega solves diodes only");
-    return nl;
-}
-
-
-/* ---- waveguides ---- */
-
-/* One value of a token list (taps=h@0.12,p@{pos}). */
-static Value token_value(const Token *t) {
-    Value v = {.pos = t->pos};
-    if (t->kind == TK_NUMBER) {
-        v.kind = VAL_EXPR;
-        v.expr = expr_num(t->num, t->pos);
-    } else if (t->kind == TK_LBRACE) {
-        v.kind = VAL_EXPR;
-        v.expr = parse_expr_text(t);
-    } else if (t->kind == TK_IDENT) {
-        v.kind = VAL_NAME;
-        v.name = arena_strndup(t->text, (size_t)t->len);
-    } else {
-        error_at(t->pos, "expected a number, a param or {expression}, found '%.*s'", t->len, t->text);
-    }
-    return v;
-}
-
-static bool is_tok(const Token *t, char c) { return t->len == 1 && t->text[0] == c && t->kind != TK_IDENT; }
-
-/* Lowest value of e over the params' ranges (each param alone at its
- * bounds, and the defaults); every param it depends on needs finite
- * bounds. */
-static double expr_min(Elab *E, Expr *e, SrcPos pos, const char *what) {
+double lower_expr_min(Lower *L, Expr *e, SrcPos pos, const char *what) {
+    Elab *E = L->E;
     double *p = arena_alloc(sizeof(double) * (size_t)(E->params.len + 1));
     for (int j = 0; j < E->params.len; j++)
         p[j] = ((Param *)E->params.data[j])->def;
@@ -834,185 +655,46 @@ static double expr_min(Elab *E, Expr *e, SrcPos pos, const char *what) {
     return m;
 }
 
-static Expr *mul(Expr *a, Expr *b) { return expr_bin(EX_MUL, a, b); }
-static Expr *num(double v, SrcPos pos) { return expr_num(v, pos); }
+static void check_keys(Line *l) {
+    for (int i = 0; i < l->nkv; i++)
+        if (!block_has_key(l->kind, l->kv[i].key) && strcmp(l->kv[i].key, "model"))
+            error_at(l->kv[i].pos, "unknown key '%s' for %s '%s'", l->kv[i].key,
+                     block_desc[l->kind].desc, l->name);
+}
 
-/* string S a b L= f0= [mu=|T=] [t60= t60hf= fhf=] [B=] [taps=...]
- * tube W a b L= r= [t60=] [ends=open|closed[,open|closed]] [c=] [rho=] */
-static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
-    bool tube = l->kind == BK_TUBE;
-    Waveguide *w = arena_alloc(sizeof(Waveguide));
-    w->name = format("%s%s", S->prefix, l->name);
-    w->tube = tube;
-    w->pos = l->namepos;
-    w->end[0] = node[0];
-    w->end[1] = node[1];
-    w->nu1 = 1;
-    SrcPos pos = l->namepos;
-    Expr *L = need_key(E, S, l, "L");
-    double Ld = expr_params(L) ? NAN : expr_eval(L, NULL);
-    if (expr_params(L) || !(Ld > 0) || !isfinite(Ld))
-        error_at(key(l, "L")->val.pos, "L must be a positive number of metres");
-    if (!tube) {
-        w->term[0] = w->term[1] = 'r';
-        w->f0 = need_key(E, S, l, "f0");
-        w->B = key_or(E, S, l, "B", 0);
-        double Bmin = expr_min(E, w->B, key(l, "B") ? key(l, "B")->val.pos : pos, "B");
-        if (!(Bmin >= 0) || !isfinite(Bmin))
-            error_at(key(l, "B")->val.pos, "string '%s' has B = %g; the stiffness must be at least 0", l->name, Bmin);
-        KeyVal *mu = key(l, "mu"), *T = key(l, "T");
-        if (mu && T)
-            error_at(T->pos, "string '%s': give mu= or T=, not both (f0 and L fix the other)", l->name);
-        /* c = 2 L f0 / sqrt(1 + B); Z = mu c or T / c; the port is 1 / Z */
-        Expr *cw = expr_bin(EX_DIV, mul(num(2 * Ld, pos), w->f0),
-                            expr_call(FN_SQRT, expr_bin(EX_ADD, num(1, pos), w->B), NULL));
-        Expr *Z = T ? expr_bin(EX_DIV, value_expr(E, S, &T->val, "T"), cw)
-                    : mul(mu ? value_expr(E, S, &mu->val, "mu") : num(1e-3, pos), cw);
-        w->Rp = expr_bin(EX_DIV, num(1, pos), Z);
-    } else {
-        Expr *r = need_key(E, S, l, "r");
-        double rd = expr_params(r) ? NAN : expr_eval(r, NULL), cs = 343.2, rho = 1.204;
-        if (expr_params(r) || !(rd > 0) || !isfinite(rd))
-            error_at(key(l, "r")->val.pos, "r must be a positive number of metres");
-        KeyVal *ck = key(l, "c"), *rk = key(l, "rho");
-        if (ck)
-            cs = const_number(&ck->val, "c=");
-        if (rk)
-            rho = const_number(&rk->val, "rho=");
-        if (!(cs > 0) || !(rho > 0))
-            error_at(ck && !(cs > 0) ? ck->val.pos : rk->val.pos, "c and rho must be positive");
-        w->term[0] = w->term[1] = 'o';
-        KeyVal *ek = key(l, "ends");
-        if (ek) {
-            int n = 0;
-            const Token *t = ek->val.kind == VAL_LIST ? ek->val.toks : NULL;
-            int nt = ek->val.kind == VAL_LIST ? ek->val.ntoks : 0;
-            const char *one = ek->val.kind == VAL_NAME ? ek->val.name : NULL;
-            for (int i = 0; one ? i < 1 : i < nt; i += 2) {
-                const char *v = one ? one : t[i].kind == TK_IDENT ? arena_strndup(t[i].text, (size_t)t[i].len) : "";
-                SrcPos vp = one ? ek->val.pos : t[i].pos;
-                if (!one && i + 1 < nt && t[i + 1].kind != TK_COMMA)
-                    error_at(t[i + 1].pos, "ends= takes open or closed, or two of them separated by a comma");
-                if (n >= 2 || (strcmp(v, "open") && strcmp(v, "closed")))
-                    error_at(vp, "ends= takes open or closed, or two of them separated by a comma");
-                w->term[n++] = v[0];
-            }
-            if (n == 1)
-                w->term[1] = w->term[0];
-        }
-        /* end corrections of open ends (unflanged: 0.6133 r) */
-        double Leff = Ld;
-        for (int k = 0; k < 2; k++)
-            if (!node[k] && w->term[k] == 'o') {
-                Leff += 0.6133 * rd;
-                w->rad = num(rd / cs, pos);
-            }
-        bool closed = (!node[0] && w->term[0] == 'c'), open = (!node[0] && w->term[0] == 'o');
-        closed |= !node[1] && w->term[1] == 'c';
-        open |= !node[1] && w->term[1] == 'o';
-        if (closed && open)
-            w->nu1 = 0.5;
-        w->f0 = num(cs / (2 * Leff), pos);
-        w->B = num(0, pos);
-        w->Rp = num(rho * cs / (3.14159265358979323846 * rd * rd), pos);
-        /* wall losses (boundary layers): alpha = 3e-5 sqrt(f) / r nepers a
-         * metre, so t60 = 3 ln 10 / (alpha c) */
-        if (!key(l, "t60")) {
-            double f1 = cs / (2 * Leff) * w->nu1, fh = 5000;
-            w->t60 = num(3 * log(10) / (3e-5 * sqrt(f1) / rd * cs), pos);
-            w->t60hf = num(3 * log(10) / (3e-5 * sqrt(fh) / rd * cs), pos);
-            w->fhf = num(fh, pos);
-        }
-    }
-    if (key(l, "t60")) {
-        w->t60 = need_key(E, S, l, "t60");
-        w->t60hf = key(l, "t60hf") ? need_key(E, S, l, "t60hf") : NULL;
-        w->fhf = key_or(E, S, l, "fhf", 5000);
-    } else if (key(l, "t60hf")) {
-        error_at(key(l, "t60hf")->pos, "t60hf= needs t60= too");
-    }
-    if (!w->fhf)
-        w->fhf = num(5000, pos);
-    w->f0_min = expr_min(E, w->f0, pos, "f0");
-    if (!(w->f0_min >= 1) || !isfinite(w->f0_min))
-        error_at(tube ? pos : key(l, "f0")->val.pos, "%s '%s' has a first resonance of %g Hz; it must be at "
-                 "least 1 Hz", tube ? "tube" : "string", l->name, w->f0_min * w->nu1);
-    /* taps */
-    Vec tn = {0}, tp = {0}, tsrc = {0}, tnames = {0};
-    KeyVal *tk = key(l, "taps");
-    if (tk) {
-        const Token *t = tk->val.kind == VAL_LIST ? tk->val.toks : NULL;
-        int nt = t ? tk->val.ntoks : 0;
-        if (!t)
-            error_at(tk->val.pos, "taps= takes a list NODE@FRACTION,NODE@FRACTION,...");
-        for (int i = 0; i < nt; i += 4) {
-            if (t[i].kind != TK_IDENT || i + 2 >= nt || !is_tok(&t[i + 1], '@'))
-                error_at(t[i].pos, "expected NODE@FRACTION in taps=");
-            if (i + 3 < nt && t[i + 3].kind != TK_COMMA)
-                error_at(t[i + 3].pos, "expected ',' between taps");
-            const char *nm = arena_strndup(t[i].text, (size_t)t[i].len);
-            int nd = node_of(E, S, nm, t[i].pos, true);
-            if (nd == 0)
-                error_at(t[i].pos, "a tap cannot be on ground (node 0)");
-            if (nd == node[0] || nd == node[1])
-                error_at(t[i].pos, "tap '%s' is also an end of %s '%s'", nm, tube ? "tube" : "string", l->name);
-            for (int j = 0; j < tn.len; j++)
-                if (*(int *)tn.data[j] == nd)
-                    error_at(t[i].pos, "tap '%s' is given twice", nm);
-            Value v = token_value(&t[i + 2]);
-            Expr *x = value_expr(E, S, &v, "a tap position");
-            int *pn = arena_alloc(sizeof(int));
-            *pn = nd;
-            vec_push(&tn, pn);
-            vec_push(&tp, x);
-            SrcPos *ps = arena_alloc(sizeof(SrcPos));
-            *ps = t[i + 2].pos;
-            vec_push(&tsrc, ps);
-            vec_push(&tnames, (void *)nm);
-        }
-    }
-    w->ntaps = tn.len;
-    w->nmin = w->ntaps ? 4 : 2;
-    for (int k = 0; k < 2; k++)
-        w->nrad += tube && !node[k] && w->term[k] == 'o';
-    w->tap_node = arena_alloc(sizeof(int) * (size_t)(tn.len + 1));
-    w->tap_pos = arena_alloc(sizeof(Expr *) * (size_t)(tn.len + 1));
-    w->tap_src = arena_alloc(sizeof(SrcPos) * (size_t)(tn.len + 1));
-    w->tap_name = arena_alloc(sizeof(char *) * (size_t)(tn.len + 1));
-    for (int j = 0; j < tn.len; j++) {
-        w->tap_node[j] = *(int *)tn.data[j];
-        w->tap_pos[j] = tp.data[j];
-        w->tap_src[j] = *(SrcPos *)tsrc.data[j];
-        w->tap_name[j] = tnames.data[j];
-    }
-    if (node[0] && node[0] == node[1])
-        error_at(l->args[1].pos, "%s '%s' has both ends on one node", tube ? "tube" : "string", l->name);
-    if (!node[0] && !node[1] && !w->ntaps)
-        error_at(l->namepos, "%s '%s' joins nothing: put an end on a node or give it taps=", tube ? "tube" : "string",
-                 l->name);
-    int wi = E->wgs.len;
-    vec_push(&E->wgs, w);
-    /* ports: end a (faces b), taps (both sides), end b (faces a) */
-    for (int pt = 0; pt <= w->ntaps + 1; pt++) {
-        int nd = pt == 0 ? node[0] : pt == w->ntaps + 1 ? node[1] : w->tap_node[pt - 1];
-        if (!nd)
-            continue;
-        for (int side = 0; side < 2; side++) {
-            if ((pt == 0 && side == 0) || (pt == w->ntaps + 1 && side == 1))
-                continue;
-            const char *suffix = pt == 0 ? ".a" : pt == w->ntaps + 1 ? ".b"
-                                 : format(".%s.%c", w->tap_name[pt - 1], side ? 'r' : 'l');
-            Elem *e = add_elem(E, S, l, E_S, suffix, nd, 0);
-            e->val = w->Rp;
-            /* a tap that a param moves may leave its string: its ports
-             * then drop out of their junction */
-            if (pt > 0 && pt <= w->ntaps && expr_params(w->tap_pos[pt - 1]))
-                e->val = expr_bin(EX_DIV, w->Rp, expr_call(FN_TAPON, w->tap_pos[pt - 1], NULL));
-            e->wg = wi;
-            e->pt = pt;
-            e->side = side;
-        }
-    }
+Line *lower_model(Lower *L, const Value *v) {
+    if (v->kind != VAL_NAME)
+        error_at(v->pos, "expected a model name");
+    int i = map_get(&L->E->model_ix, v->name);
+    if (i >= 0)
+        return L->E->models.data[i];
+    error_at(v->pos, "unknown model '%s'", v->name);
+}
+
+Line *lower_model_keys(Line *l, const Line *m) {
+    Line *r = arena_alloc(sizeof(Line));
+    *r = *l;
+    r->kv = arena_alloc(sizeof(KeyVal) * (size_t)(l->nkv + m->nkv + 1));
+    r->nkv = 0;
+    for (int i = 0; i < l->nkv; i++)
+        if (strcmp(l->kv[i].key, "model"))
+            r->kv[r->nkv++] = l->kv[i];
+    for (int i = 0; i < m->nkv; i++)
+        if (!lower_key(l, m->kv[i].key))
+            r->kv[r->nkv++] = m->kv[i];
+    return r;
+}
+
+/* model=NAME: the model's keys become defaults of the element's. */
+static Line *with_model(Lower *L, Line *l) {
+    KeyVal *mk = lower_key(l, "model");
+    if (!mk)
+        return l;
+    Line *m = lower_model(L, &mk->val);
+    if (m->model_kind != l->kind)
+        error_at(mk->val.pos, "model '%s' is a %s model, not a %s model", m->name,
+                 block_desc[m->model_kind].desc, block_desc[l->kind].desc);
+    return lower_model_keys(l, m);
 }
 
 /* The most elements a netlist may hold once its blocks are expanded, and
@@ -1025,8 +707,10 @@ static void waveguide(Elab *E, Scope *S, Line *l, const int *node) {
 
 static void instantiate(Elab *E, Scope *S, Line *l);
 
+/* An element line: counted, its keys checked, a model's keys lent, its
+ * nodes numbered, then lowered by its kind. */
 static void element(Elab *E, Scope *S, Line *l) {
-    const BlockDesc *d = &block_desc[l->kind];
+    const Kind *d = block_desc[l->kind].kind;
     if (l->kind == BK_USE) {
         instantiate(E, S, l);
         return;
@@ -1035,143 +719,15 @@ static void element(Elab *E, Scope *S, Line *l) {
         error_at(l->namepos, "the netlist holds more than %d elements", MAX_ELEMENTS);
     E->nelements++;
     check_keys(l);
-    l = with_model(E, l);
-    int nn = d->nnodes;
+    Lower L = {E, S};
+    l = with_model(&L, l);
     int node[4] = {0};
-    for (int i = 0; i < nn && i < 4; i++)
+    for (int i = 0; i < d->nnodes && i < 4; i++)
         node[i] = node_of(E, S, l->args[i].name, l->args[i].pos, true);
-    if (l->kind == BK_D) {
-        const Value *m = &l->args[2];
-        if (find_model(E, m)->model_kind != BK_D)
-            error_at(m->pos, "model '%s' is not a diode model", m->name);
-    }
     if (!d->ready)
         error_at(l->headpos, "%s '%s' is not supported yet", d->desc, l->name);
-    const Value *arg = nn < l->nargs ? &l->args[nn] : NULL;
-    Elem *e;
-    switch (l->kind) {
-    case BK_R: case BK_C: case BK_L: {
-        if (l->kind == BK_C && nonlinear_reactance(E, S, l, node))
-            return;
-        ElemKind k = l->kind == BK_R ? E_R : l->kind == BK_C ? E_C : E_L;
-        e = add_elem(E, S, l, k, "", node[0], node[1]);
-        const char *kn = l->kind == BK_R ? "R" : l->kind == BK_C ? "C" : "L";
-        if (arg && key(l, kn))
-            error_at(key(l, kn)->pos, "value of '%s' given twice", l->name);
-        e->val = arg ? value_expr(E, S, arg, "the value") : need_key(E, S, l, kn);
-        KeyVal *ic = key(l, "IC") ? key(l, "IC") : key(l, "ic");
-        if (ic) {
-            e->ic = value_expr(E, S, &ic->val, "IC");
-            check_magnitude(E, e->ic, ic->val.pos, format("the initial %s of %s '%s'", k == E_C ? "voltage" : "current",
-                                                          d->desc, e->name), k == E_C ? "V" : "A");
-        }
-        break;
-    }
-    case BK_V: case BK_I: case BK_FORCE: case BK_VELOCITY: {
-        bool isv = l->kind == BK_V || l->kind == BK_VELOCITY;
-        /* a force on x from y injects current into x: it flows y -> x */
-        bool rev = l->kind == BK_FORCE;
-        e = add_elem(E, S, l, isv ? E_V : E_I, "", node[rev], node[!rev]);
-        set_drive(E, S, e, arg);
-        if (key(l, "R"))
-            e->val = value_expr(E, S, &key(l, "R")->val, "R");
-        /* a voltage source with no resistance in series is the ideal one,
-         * as if R= were not given (a value that params move stays a
-         * resistance, checked positive) */
-        if (isv && e->val && expr_is_const(e->val) && expr_eval(e->val, NULL) == 0)
-            e->val = NULL;
-        break;
-    }
-    case BK_MASS:
-        e = add_elem(E, S, l, E_C, "", node[0], 0);
-        e->val = need_key(E, S, l, "m");
-        break;
-    case BK_SPRING:
-        if (nonlinear_reactance(E, S, l, node))
-            return;
-        e = add_elem(E, S, l, E_L, "", node[0], node[1]);
-        e->val = div1(need_key(E, S, l, "k"));
-        break;
-    case BK_DAMPER:
-        e = add_elem(E, S, l, E_R, "", node[0], node[1]);
-        e->val = div1(need_key(E, S, l, "c"));
-        break;
-    case BK_MUTATOR: {
-        Mutator *m = arena_alloc(sizeof(Mutator));
-        KeyVal *t = key(l, "type");
-        const char *ty = t && t->val.kind == VAL_NAME ? t->val.name : "";
-        if (!t || (strcmp(ty, "RC") && strcmp(ty, "RL")))
-            error_at(t ? t->val.pos : l->namepos, "mutator '%s' needs type=RC or type=RL", l->name);
-        m->name = format("%s%s", S->prefix, l->name);
-        for (int i = 0; i < 4; i++)
-            m->n[i] = node[i];
-        m->type = ty[1];
-        m->pos = l->namepos;
-        m->line = l;
-        if (node[0] == node[1] || node[2] == node[3])
-            error_at(l->args[node[0] == node[1] ? 0 : 2].pos, "mutator '%s' has both terminals of a port on one "
-                     "node", l->name);
-        vec_push(&E->mutators, m);
-        return;
-    }
-    case BK_D: case BK_NLRES: case BK_CONTACT:
-        e = add_elem(E, S, l, E_NL, "", node[0], node[1]);
-        e->nl = nonlinear(E, S, l);
-        break;
-    case BK_T: { /* T NAME a a' b b' Z0= TD=: two ends joined by a delay */
-        KeyVal *z = key(l, "Z0"), *td = key(l, "TD");
-        if (!z || !td)
-            error_at(l->namepos, "transmission line '%s' needs Z0= and TD=", l->name);
-        double z0 = const_number(&z->val, "Z0="), d = const_number(&td->val, "TD=");
-        if (!(z0 > 0))
-            error_at(z->val.pos, "Z0 must be positive");
-        if (!(d > 0) || d > 10)
-            error_at(td->val.pos, "TD must lie between 0 and 10 s");
-        if (!(d * E->c->rate >= 0.5))
-            error_at(td->val.pos, "TD = %g s is shorter than half a sample at %g Hz: a line needs at least one "
-                     "sample of delay", d, E->c->rate);
-        Elem *e1 = add_elem(E, S, l, E_W, ".1", node[0], node[1]);
-        Elem *e2 = add_elem(E, S, l, E_W, ".2", node[2], node[3]);
-        e1->val = e2->val = expr_num(z0, z->val.pos);
-        e1->td = e2->td = d;
-        e1->peer = E->elems.len - 1;
-        e2->peer = E->elems.len - 2;
-        if (node[0] == node[1] || node[2] == node[3])
-            error_at(l->args[node[0] == node[1] ? 0 : 2].pos, "transmission line '%s' has both terminals of a "
-                     "port on one node", l->name);
-        return;
-    }
-    case BK_STRING: case BK_TUBE:
-        waveguide(E, S, l, node);
-        return;
-    case BK_POT: {
-        Expr *R = need_key(E, S, l, "R"), *pos = need_key(E, S, l, "pos");
-        KeyVal *tk = key(l, "taper");
-        FnKind taper = FN_POTLIN;
-        if (tk) {
-            const char *t = tk->val.kind == VAL_NAME ? tk->val.name : "";
-            if (!strcmp(t, "log"))
-                taper = FN_POTLOG;
-            else if (strcmp(t, "lin"))
-                error_at(tk->val.pos, "taper= takes lin or log");
-        }
-        Expr *t = expr_call(taper, pos, NULL);
-        Expr *floor = expr_num(1e-6, l->pos);
-        Expr *one = expr_num(1, l->pos);
-        if (node[0] != node[1]) {
-            e = add_elem(E, S, l, E_R, ".aw", node[0], node[1]);
-            e->val = expr_bin(EX_MUL, R, expr_call(FN_MAX, expr_bin(EX_SUB, one, t), floor));
-        }
-        if (node[1] != node[2]) {
-            e = add_elem(E, S, l, E_R, ".wb", node[1], node[2]);
-            e->val = expr_bin(EX_MUL, R, expr_call(FN_MAX, t, floor));
-        }
-        return;
-    }
-    default:
-        unreachable();
-    }
-    if (e->n[0] == e->n[1])
+    Elem *e = d->lower(&L, l, node);
+    if (e && e->n[0] == e->n[1])
         error_at(l->args[0].pos, "%s '%s' has both terminals on node '%s'", d->desc, l->name,
                  l->args[0].name);
 }
@@ -1264,13 +820,13 @@ static void instantiate(Elab *E, Scope *S, Line *l) {
         in->formal_node[i] = node_of(E, S, l->args[i + 1].name, l->args[i + 1].pos, true);
     in->bparam = arena_alloc(sizeof(Expr *) * (size_t)(h->nkv + 1));
     for (int i = 0; i < l->nkv; i++)
-        if (!key(h, l->kv[i].key))
+        if (!lower_key(h, l->kv[i].key))
             error_at(l->kv[i].pos, "block '%s' has no param '%s'", bname, l->kv[i].key);
     for (int i = 0; i < h->nkv; i++) {
-        KeyVal *given = key(l, h->kv[i].key);
-        in->bparam[i] = given ? value_expr(E, S, &given->val, h->kv[i].key)
-                              : value_expr(E, S->def ? S : &(Scope){.prefix = ""}, &h->kv[i].val,
-                                           h->kv[i].key);
+        KeyVal *given = lower_key(l, h->kv[i].key);
+        in->bparam[i] = given ? lower_value(&(Lower){E, S}, &given->val, h->kv[i].key)
+                              : lower_value(&(Lower){E, S->def ? S : &(Scope){.prefix = ""}}, &h->kv[i].val,
+                                            h->kv[i].key);
     }
     for (int i = 0; i < def->lines.len; i++) {
         Line *bl = def->lines.data[i];
@@ -1278,6 +834,21 @@ static void instantiate(Elab *E, Scope *S, Line *l) {
             element(E, in, bl);
     }
 }
+
+/* use BLOCK INST nodes... key=value...: an instance of a block, which
+ * instantiate expands rather than a lowering. */
+static const KindKey use_keys[] = {{NULL, NULL}};
+
+const Kind kind_use = {
+    .desc = "block instance",
+    .keyword = "use",
+    .nnodes = -1,
+    .args = "",
+    .keys = use_keys,
+    .ready = true,
+    .law = "those of the block's elements",
+    .lowers_to = "the block's elements, named INST.NAME",
+};
 
 /* Each mutator takes the nonlinear resistor across its second port, which
  * must be alone there, and becomes a nonlinear reactance at its first. */
@@ -1323,7 +894,7 @@ static void mutate(Elab *E) {
         nl->mutated = m->type;
         /* the resistor leaves the network; the reactance takes the mutator's name */
         E->elems.data[found] = E->elems.data[--E->elems.len];
-        Elem *e = add_elem(E, &(Scope){.prefix = ""}, m->line, E_NL, "", m->n[0], m->n[1]);
+        Elem *e = lower_elem(&(Lower){E, &(Scope){.prefix = ""}}, m->line, E_NL, "", m->n[0], m->n[1]);
         e->name = m->name;
         e->nl = nl;
         e->user_kind = BK_MUTATOR;
@@ -1399,6 +970,7 @@ static IcSpec **ic_table(Elab *E, char fn) {
 
 static void dir_ic(Elab *E, Line *l) {
     Scope top = {.prefix = ""};
+    Lower at_top = {E, &top};
     for (int i = 0; i < l->nrefs; i++) {
         const Ref *r = &l->refs[i];
         if (r->fn != 'v' && r->fn != 'x')
@@ -1410,8 +982,8 @@ static void dir_ic(Elab *E, Line *l) {
         ic->node = node_of(E, &top, r->arg[0], r->argpos[0], false);
         if (ic->node == 0)
             error_at(r->argpos[0], "ground has no initial condition");
-        ic->val = value_expr(E, &top, &l->refvals[i], "the initial condition");
-        check_magnitude(E, ic->val, l->refvals[i].pos, format("the initial condition %c(%s)", r->fn, r->arg[0]),
+        ic->val = lower_value(&at_top, &l->refvals[i], "the initial condition");
+        lower_magnitude(&at_top, ic->val, l->refvals[i].pos, format("the initial condition %c(%s)", r->fn, r->arg[0]),
                         domain_unit(E->c->domain, r->fn));
         ic->pos = r->pos;
         IcSpec **at = ic_table(E, ic->fn);

@@ -7,7 +7,8 @@
  *   parse.c  tokens -> syntax lines (one Line per netlist line)
  *   elab.c   lines -> Circuit: one flat graph of primitive elements in SI
  *            units (mechanical elements mapped by the mobility analogy),
- *            params, inputs, probes, initial conditions
+ *            params, inputs, probes, initial conditions; each line is
+ *            lowered by its kind's descriptor in blocks/ (lower.h)
  *   waveguide.c  the order of each waveguide's allpass (wg_choose)
  *   wdf.c    Circuit -> Wdf: an adaptor forest, one root per biconnected
  *            block (series/parallel adaptors found by series-parallel
@@ -251,23 +252,50 @@ Program *parse_file(SrcFile *f);
 Expr *parse_expr_text(const Token *brace);
 SrcFile *srcfile_new(const char *path, const char *text);
 
-/* blocks: the element library (blocks/blocks.def) */
+/* blocks.c: the element library.  Each kind of element a netlist line
+ * can hold has one descriptor, defined with its lowering in blocks/
+ * (blocks/resistor.c, ...); blocks/blocks.def lists them, in the order of
+ * the BK_* enum. */
 
-#define BLOCK(id, kw, letter, nnodes, args, keys, ready, desc) id,
+#define BLOCK(id, kind) id,
 typedef enum {
 #include "../blocks/blocks.def"
     BK_COUNT
 } BlockKind;
 #undef BLOCK
 
-typedef struct BlockDesc {
+typedef struct Lower Lower; /* elaboration as a kind's lowering sees it (lower.h) */
+struct Elem;
+
+/* A key an element kind accepts. */
+typedef struct KindKey {
+    const char *name; /* as written (keys are case-sensitive) */
+    const char *unit; /* SI unit of its value; "" for a plain number or a word */
+} KindKey;
+
+typedef struct Kind {
+    char desc[24];        /* what it is, for messages ("resistor"); an array,
+                             so that block_desc can point at it statically */
     const char *keyword;  /* e.g. "mass"; NULL for SPICE-letter-only kinds */
     char letter;          /* SPICE first letter, or 0 */
     int nnodes;           /* -1: variadic */
-    const char *args;     /* positional arguments after the nodes */
-    const char *keys;     /* space-separated list of accepted keys */
+    const char *args;     /* positional arguments: after the nodes v value,
+                             d drive (input, param or value), m model name;
+                             before them t junction type */
+    const KindKey *keys;  /* accepted keys, ending with {NULL} */
     bool ready;           /* implemented by the current compiler */
-    const char *desc;     /* what it is, for messages */
+    const char *law;      /* its law, in the netlist's units */
+    const char *lowers_to; /* the primitive elements (E_*) it becomes */
+    /* Adds the kind's primitive elements for line l (keys checked, model
+     * keys merged, its nodes at node[]).  Returns the element whose two
+     * terminals must differ, or NULL if the kind checked its own. */
+    struct Elem *(*lower)(Lower *L, Line *l, const int *node);
+} Kind;
+
+/* The registry: each kind's descriptor, and its noun for messages. */
+typedef struct BlockDesc {
+    const char *desc; /* kind->desc */
+    const Kind *kind;
 } BlockDesc;
 
 extern const BlockDesc block_desc[BK_COUNT];

@@ -405,7 +405,7 @@ static void element(Parser *P, Line *l) {
         P->tok++;
     }
     l->kind = kind;
-    const BlockDesc *d = &block_desc[kind];
+    const Kind *d = block_desc[kind].kind;
     Vec args = {0};
     if (kind == BK_USE) { /* use BLOCK INST node...: what was read as the name is the block */
         add_arg(&args, (Value){.kind = VAL_NAME, .pos = l->namepos, .name = l->name});
