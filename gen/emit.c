@@ -762,7 +762,7 @@ static void root_static(Ctx *x, int rb) {
             val[j] = sym_k(j == k ? -1 : 0);
         lin_solve(L, val, pot, NULL);
         Sym R = sx_sub(sx, POT(r->edge[k].p), POT(r->edge[k].q));
-        if (R.t < 0 && !R.ext)
+        if (sym_number(R))
             return; /* held by ideal sources: the general solve keeps what it had */
         int nl = x->nl_first[rb] + k - r->nport;
         const char *v = sx_use(sx, R);
@@ -793,7 +793,7 @@ static void root_static(Ctx *x, int rb) {
             const RootEdge *e = &r->edge[k];
             Sym v = sx_sub(sx, POT(e->p), POT(e->q));
             Sym out = e->kind == EDGE_V ? cur[k] : e->kind == EDGE_I ? v : sx_sub(sx, sx_mul(sx, sym_k(2), v), sym_k(j == k));
-            num[k * ne + j] = out.t < 0 && !out.ext;
+            num[k * ne + j] = sym_number(out);
             mv[k * ne + j] = out.c;
             ms[k * ne + j] = out;
         }
@@ -1866,7 +1866,6 @@ static void index_tree(Ctx *x) {
         x->nl_first[b] = x->nnl;
         x->nnl += w->roots[b].nnl;
         x->moff[b] = x->nM;
-        x->mzero[b] = root_zeros(&w->roots[b]);
         x->nM += w->roots[b].nedge * w->roots[b].nedge;
     }
     x->rfn = arena_alloc(sizeof(char *) * (size_t)(w->nroots + 1));
@@ -1874,8 +1873,14 @@ static void index_tree(Ctx *x) {
     x->mval = arena_alloc(sizeof(double *) * (size_t)(w->nroots + 1));
     x->msym = arena_alloc(sizeof(Sym *) * (size_t)(w->nroots + 1));
     x->rsx = arena_alloc(sizeof(Sx *) * (size_t)(w->nroots + 1));
-    for (int b = 0; b < w->nroots; b++)
+    for (int b = 0; b < w->nroots; b++) {
+        /* the entries that vanish: exactly from the straight-line solve,
+         * else as the root's matrix shows them at perturbed resistances */
+        x->mzero[b] = arena_alloc(sizeof(bool) * (size_t)(w->roots[b].nedge * w->roots[b].nedge + 1));
         root_static(x, b);
+        if (!x->rfn[b])
+            x->mzero[b] = root_zeros(&w->roots[b]);
+    }
     x->nl_root = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
     x->nl_edge = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
     for (int b = 0; b < w->nroots; b++)

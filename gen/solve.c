@@ -87,9 +87,9 @@ Sym sym_k(double c) { return (Sym){.t = -1, .c = c}; }
 
 Sym sym_ext(const char *text) { return (Sym){.t = -1, .ext = text}; }
 
-bool sym_is(Sym a, double c) { return a.t < 0 && !a.ext && a.c == c; }
+bool sym_number(Sym a) { return a.t < 0 && !a.ext; }
 
-static bool is_k(Sym a) { return a.t < 0 && !a.ext; }
+bool sym_is(Sym a, double c) { return sym_number(a) && a.c == c; }
 
 /* The operand text of a: a number, an external's text, or a temporary's
  * name (a marker the printer resolves: "\001N\002", N its item). */
@@ -131,7 +131,7 @@ static Sym temp(Sx *s, char op, const char *text, Sym a, Sym b) {
 Sym sx_temp(Sx *s, const char *text) { return temp(s, 'x', text, sym_k(0), sym_k(0)); }
 
 Sym sx_neg(Sx *s, Sym a) {
-    if (is_k(a))
+    if (sym_number(a))
         return sym_k(-a.c);
     if (a.t >= 0 && s->it[a.t].negof)
         return (Sym){.t = s->it[a.t].negof - 1};
@@ -141,7 +141,7 @@ Sym sx_neg(Sx *s, Sym a) {
 }
 
 Sym sx_add(Sx *s, Sym a, Sym b) {
-    if (is_k(a) && is_k(b))
+    if (sym_number(a) && sym_number(b))
         return sym_k(a.c + b.c);
     if (sym_is(a, 0))
         return b;
@@ -151,7 +151,7 @@ Sym sx_add(Sx *s, Sym a, Sym b) {
 }
 
 Sym sx_sub(Sx *s, Sym a, Sym b) {
-    if (is_k(a) && is_k(b))
+    if (sym_number(a) && sym_number(b))
         return sym_k(a.c - b.c);
     if (sym_is(b, 0))
         return a;
@@ -161,7 +161,7 @@ Sym sx_sub(Sx *s, Sym a, Sym b) {
 }
 
 Sym sx_mul(Sx *s, Sym a, Sym b) {
-    if (is_k(a) && is_k(b))
+    if (sym_number(a) && sym_number(b))
         return sym_k(a.c * b.c);
     if (sym_is(a, 0) || sym_is(b, 0))
         return sym_k(0);
@@ -177,7 +177,7 @@ Sym sx_mul(Sx *s, Sym a, Sym b) {
 }
 
 Sym sx_div(Sx *s, Sym a, Sym b) {
-    if (is_k(a) && is_k(b))
+    if (sym_number(a) && sym_number(b))
         return sym_k(a.c / b.c);
     if (sym_is(a, 0))
         return sym_k(0);

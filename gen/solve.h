@@ -20,6 +20,7 @@ typedef struct Sx Sx;
 Sx *sx_new(const char *prefix);
 Sym sym_k(double c);
 Sym sym_ext(const char *text);
+bool sym_number(Sym a);       /* a is a number (its value in c) */
 bool sym_is(Sym a, double c); /* a is the number c */
 Sym sx_temp(Sx *s, const char *text); /* a temporary holding C text */
 Sym sx_neg(Sx *s, Sym a);
