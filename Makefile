@@ -118,7 +118,7 @@ build/tests/test_prepare_tsan: tests/test_prepare.c runtime/engine.c runtime/wdr
 bench: deps
 	sh scripts/install-bench-deps.sh
 	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench build/bench/paramblock build/bench/compilebench
-	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn
+	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn tests/nets/hammers_one.wdn tests/nets/hammers_eight.wdn
 	build/bench/nlbench $(NETLISTS)
 	build/bench/stkbench netlists/pluck.wdn
 	build/bench/rtbench

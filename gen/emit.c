@@ -137,6 +137,8 @@ static bool uses(const char *text, const char *name) {
  * stores a state or an output and always stays. */
 typedef struct Stmt {
     const char *def, *text;
+    int own;    /* the root whose tree it computes, -1: none */
+    char phase; /* 'f' forward, 'a' a nonlinear edge's incident wave, 'r' root, 'b' backward, 0 other */
 } Stmt;
 
 /* A local of process, loaded before the sample loop: `name` (NULL: always
@@ -200,6 +202,14 @@ typedef struct Ctx {
     int *sp_of;      /* element (E_S) -> its index in s_wpre, or -1 */
     int nsp;
     int *wtap_port;  /* tap -> ports facing a and b (2 each) */
+    /* idle roots: a contact, and behind it masses and string taps that
+     * the open contact leaves untouched; process skips them while every
+     * such contact stays open */
+    bool *idle;      /* root -> idle root */
+    int nidle;
+    int own;         /* the root the statements being put compute, -1: none */
+    char phase;      /* their phase (Stmt.phase) */
+    Buf wfix;        /* after idle samples: the waves that last arrived at idle taps */
 } Ctx;
 
 /* A statement of the sample loop defining `def` (NULL: a store). */
@@ -217,7 +227,7 @@ static void put(Ctx *x, const char *def, const char *fmt, ...) {
             memcpy(n, x->stmt, sizeof(Stmt) * (size_t)x->nstmt);
         x->stmt = n;
     }
-    x->stmt[x->nstmt++] = (Stmt){def, str(&b)};
+    x->stmt[x->nstmt++] = (Stmt){def, str(&b), x->own, x->phase};
 }
 
 /* A local of process named `name` (NULL: always there), its declaration,
@@ -494,12 +504,26 @@ static void emit_waveguides(Ctx *x) {
     }
 }
 
+/* The wave that arrives at waveguide port e at sample position pos. */
+static const char *wave_in(Ctx *x, const Elem *e, const char *pos) {
+    int w = e->wg, m = x->wv_size[w] - 1;
+    const Waveguide *g = &x->c->wgs[w];
+    if (e->side == 0)
+        return e->pt == g->ntaps + 1 ? format("t_wb%d", w)
+                                     : format("s_wv[%d + ((%s - k_wk%d) & %du)]", x->wv_off[w], pos,
+                                              x->wt_off[w] + e->pt - 1, m);
+    return format("s_wv[%d + ((%s - %s) & %du)]", x->wv_off[w] + x->wv_size[w], pos,
+                  e->pt == 0 ? format("k_wNL%d", w) : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m);
+}
+
 static void emit_forward(Ctx *x) {
     const Circuit *c = x->c;
+    x->own = -1, x->phase = 0;
     emit_waveguides(x);
     put(x, NULL, "        /* forward: waves reflected towards the root */\n");
     for (int i = 0; i < x->w->nnodes; i++) {
         const WNode *n = x->w->nodes[i];
+        x->own = n->root, x->phase = 'f';
         const char *tb = format("t_b%d", i);
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
@@ -526,16 +550,11 @@ static void emit_forward(Ctx *x) {
                 break;
             }
             case WD_WAVEGUIDE: {
-                int w = e->wg, m = x->wv_size[w] - 1;
-                const Waveguide *g = &x->c->wgs[w];
-                if (e->side == 0)
-                    put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, e->pt == g->ntaps + 1 ? format("t_wb%d", w)
-                        : format("s_wv[%d + ((t_pos - k_wk%d) & %du)]", x->wv_off[w], x->wt_off[w] + e->pt - 1, m), e->name);
-                else
-                    put(x, tb, "        const real t_b%d = s_wv[%d + ((t_pos - %s) & %du)]; /* %s */\n", i,
-                        x->wv_off[w] + x->wv_size[w], e->pt == 0 ? format("k_wNL%d", w)
-                        : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m, e->name);
+                int w = e->wg;
+                put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, wave_in(x, e, "t_pos"), e->name);
                 put(x, NULL, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
+                if (x->idle[n->root])
+                    emit(&x->wfix, "                s_wpre%d = %s;\n", x->sp_of[n->elem], wave_in(x, e, "t_pos - 1u"));
                 x->b[i] = tb;
                 if (roams(x, e)) {
                     /* a tap off its string sends nothing into its junction */
@@ -567,6 +586,7 @@ static void emit_forward(Ctx *x) {
         put(x, tb, "        const real t_b%d = %s;\n", i, str(&t));
         x->b[i] = tb;
     }
+    x->own = -1, x->phase = 0;
 }
 
 /* input j of the root: b of a port or the drive of a source */
@@ -639,6 +659,42 @@ static bool contact_gates(Ctx *x, int k) {
                 return true;
     }
     return false;
+}
+
+/* Idle roots: a root of one port and one contact whose tree holds only
+ * string taps that the open contact leaves untouched and masses.  While
+ * the contact is open and carries no force, the masses keep their
+ * velocities and the taps pass their waves on: process then follows the
+ * contact's travel alone and skips the rest of the tree. */
+static void find_idle(Ctx *x) {
+    const Wdf *w = x->w;
+    x->idle = arena_alloc(sizeof(bool) * (size_t)(w->nroots + 1));
+    if (x->energy || x->opt->no_skip)
+        return;
+    for (int b = 0; b < w->nroots; b++) {
+        const Root *r = &w->roots[b];
+        int k = x->nl_first[b];
+        if (r->nedge != 2 || r->nport != 1 || r->nnl != 1)
+            continue;
+        const Elem *ce = nl_elem(x, k);
+        if (ce->nl->kind != NL_CONTACT || ce->nl->mutated || !contact_gates(x, k))
+            continue;
+        bool ok = true;
+        for (int i = 0; i < w->nnodes && ok; i++) {
+            const WNode *n = w->nodes[i];
+            if (n->root != b || n->kind != W_LEAF)
+                continue;
+            const Elem *e = &x->c->elems[n->elem];
+            int open[64], nopen = 0;
+            if (e->kind == E_C)
+                continue;
+            ok = e->kind == E_S && tap_kind(x, n->elem, open, &nopen) > 0;
+            for (int j = 0; j < nopen && ok; j++)
+                ok = open[j] == k;
+        }
+        x->idle[b] = ok;
+        x->nidle += ok;
+    }
 }
 
 /* The wave a nonlinear edge reflects, from the wave the root sends it. */
@@ -855,6 +911,7 @@ static void mterm(Ctx *x, Buf *t, int b, int k, int j, const char *in) {
 
 static void emit_root(Ctx *x, int b) {
     const Root *r = &x->w->roots[b];
+    x->own = b, x->phase = 'r';
     put(x, NULL, "        /* root %d */\n", b);
     for (int k = r->nport; k < r->nport + r->nnl; k++) {
         Buf t = {0};
@@ -864,7 +921,9 @@ static void emit_root(Ctx *x, int b) {
                 mterm(x, &t, b, k, j, in);
         }
         int g = x->nl_first[b] + k - r->nport;
+        x->phase = 'a';
         put(x, format("t_an%d", g), "        const real t_an%d = %s;\n", g, t.len ? str(&t) : lit(x, 0));
+        x->phase = 'r';
         emit_nl_solve(x, g);
     }
     for (int k = 0; k < r->nedge; k++) {
@@ -877,6 +936,8 @@ static void emit_root(Ctx *x, int b) {
                 mterm(x, &t, b, k, j, in);
         }
         const char *v = t.len ? str(&t) : lit(x, 0);
+        if (x->idle[b]) /* the open contact: the port sees an open end */
+            v = format("t_open%d ? %s : %s", x->nl_first[b], root_in(x, b, k), v);
         if (r->edge[k].kind == EDGE_PORT) {
             int id = r->edge[k].node->id;
             put(x, format("t_a%d", id), "        const real t_a%d = %s;\n", id, v);
@@ -886,6 +947,7 @@ static void emit_root(Ctx *x, int b) {
                 r->edge[k].kind == EDGE_V ? "current" : "voltage", x->c->elems[r->edge[k].elem].name);
         }
     }
+    x->own = -1, x->phase = 0;
 }
 
 static void emit_backward(Ctx *x) {
@@ -893,6 +955,7 @@ static void emit_backward(Ctx *x) {
     for (int i = x->w->nnodes - 1; i >= 0; i--) {
         const WNode *n = x->w->nodes[i];
         const char *a = x->a[i], *b = x->b[i];
+        x->own = n->root, x->phase = 'b';
         if (n->kind == W_LEAF) {
             const Elem *e = &x->c->elems[n->elem];
             x->bpost[i] = b;
@@ -1072,6 +1135,84 @@ static const char *sample_text(Ctx *x, Names *live) {
         if (keep[i])
             emit(&b, "%s", x->stmt[i].text);
     return str(&b);
+}
+
+/* The sample loop while the contacts of idle roots stay open: their
+ * trees' forward waves and their contacts' incident waves first; then the
+ * test that leaves this sample to the full loop if a contact would not
+ * stay open; then the contacts' travel; then the rest of the loop without
+ * the idle trees' stores (their masses hold, their taps pass untouched).
+ * Returns the text; *live gains the names it uses. */
+static const char *idle_text(Ctx *x, Names *live) {
+    Stmt *l = arena_alloc(sizeof(Stmt) * (size_t)(x->nstmt + 4 * x->nidle + 1));
+    int n = 0;
+    for (int i = 0; i < x->nstmt; i++) {
+        const Stmt *s = &x->stmt[i];
+        if (s->own >= 0 && x->idle[s->own] && s->def && (s->phase == 'f' || s->phase == 'a'))
+            l[n++] = *s;
+    }
+    Buf decl = {0}, test = {0};
+    for (int b = 0; b < x->w->nroots; b++) {
+        if (!x->idle[b])
+            continue;
+        int k = x->nl_first[b];
+        emit(&decl, "%s t_X%d = %s - c_nl%d_3", decl.len ? "," : "        const double", k,
+             dbl(x, format("s_nX%d", k)), k);
+        emit(&test, "%s(t_X%d > 0) | (t_X%d + 0.5 * k_T * %s > 0)", test.len ? " |\n            " : "", k, k,
+             dbl(x, format("(t_an%d + s_nv%d)", k, k)));
+    }
+    l[n++] = (Stmt){NULL, format("%s;\n        if (%s)\n            break; /* a contact meets: the full loop goes on */\n",
+                                 str(&decl), str(&test)), -1, 0};
+    for (int b = 0; b < x->w->nroots; b++) {
+        if (!x->idle[b])
+            continue;
+        int k = x->nl_first[b];
+        l[n++] = (Stmt){NULL, format("        s_nX%d += k_hT * (real)(%s + %s);\n        s_nv%d = t_an%d;\n", k,
+                                     dbl(x, format("t_an%d", k)), dbl(x, format("s_nv%d", k)), k, k), -1, 0};
+        l[n++] = (Stmt){format("t_bn%d", k), format("        const real t_bn%d = (real)(2 * %s - %s);\n", k,
+                                                   dbl(x, format("t_an%d", k)), dbl(x, format("t_an%d", k))), -1, 0};
+        l[n++] = (Stmt){format("t_open%d", k), format("        const int t_open%d = 1;\n", k), -1, 0};
+    }
+    for (int i = 0; i < x->nstmt; i++) {
+        const Stmt *s = &x->stmt[i];
+        if (!(s->own >= 0 && x->idle[s->own] && (!s->def || s->phase == 'f' || s->phase == 'a')))
+            l[n++] = *s;
+    }
+    Names lv = {0};
+    bool *keep = arena_alloc(sizeof(bool) * (size_t)(n + 1));
+    for (int i = n - 1; i >= 0; i--) {
+        if (l[i].def && !names_has(&lv, l[i].def))
+            continue;
+        keep[i] = true;
+        names_scan(&lv, l[i].text);
+    }
+    Buf body = {0};
+    for (int i = 0; i < n; i++)
+        if (keep[i])
+            for (const char *p = l[i].text; *p;) { /* each line one level deeper */
+                const char *e = strchr(p, '\n');
+                size_t len = e ? (size_t)(e - p) + 1 : strlen(p);
+                emit(&body, "    %.*s", (int)len, p);
+                p += len;
+            }
+    /* entering: each mass's last incident wave is its held one, as after
+     * a sample of the full loop with the contact open */
+    Buf open = {0}, hold = {0};
+    for (int b = 0; b < x->w->nroots; b++)
+        if (x->idle[b])
+            emit(&open, "%ss_nf%d == 0", open.len ? " && " : "", x->nl_first[b]);
+    for (int i = 0; i < x->w->nnodes; i++) {
+        const WNode *nd = x->w->nodes[i];
+        if (nd->kind == W_LEAF && x->idle[nd->root] && x->react[i] >= 0)
+            emit(&hold, "            s_b%d = %ss_a%d;\n", x->react[i],
+                 prims[x->c->elems[nd->elem].kind].wd == WD_HOLD_NEG ? "-" : "", x->react[i]);
+    }
+    const char *text = format("        if (%s) {\n            /* the contacts are open: the parts behind them wait */\n"
+                              "%s%s            for (; n < t_end; n++) {\n%s            }\n%s        }\n",
+                              str(&open), x->wfix.len ? "            const int t_n0 = n;\n" : "", str(&hold), str(&body),
+                              x->wfix.len ? format("            if (n > t_n0) {\n%s            }\n", str(&x->wfix)) : "");
+    names_scan(live, text);
+    return text;
 }
 
 /* ---- hoisting and write-back ---- */
@@ -2009,12 +2150,14 @@ static const char *helpers(const char *text, const char *wg) {
 
 /* The statements of the sample loop, in order. */
 static void emit_sample(Ctx *x) {
+    x->own = -1, x->phase = 0;
     for (int i = 0; i < x->c->ninputs; i++)
         put(x, format("t_in%d", i), "        const real t_in%d = (real)in%d[n];\n", i, i);
     emit_forward(x);
     for (int b = 0; b < x->w->nroots; b++)
         emit_root(x, b);
     emit_backward(x);
+    x->own = -1, x->phase = 0;
     emit_outputs(x);
     emit_work(x);
     if (x->nline || x->c->nwgs)
@@ -2154,6 +2297,7 @@ static void decl_run(Buf *decl, Buf *wb, Buf *fl) {
 static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     Names live = {0};
     const char *sample = sample_text(x, &live);
+    const char *idle = x->nidle ? idle_text(x, &live) : "";
     Buf decl = {0}, wb = {0}, fl = {0};
     print_locals(x, &live, &decl, &wb, &fl);
     /* runs of FLUSH_RUN samples are counted across calls (s_run), so the
@@ -2163,7 +2307,7 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     if (x->flushes) {
         decl_run(&decl, &wb, &fl);
     }
-    const char *head = format("%s%s", dirty, str(&decl)), *loop = format("%s%s%s", sample, str(&fl), str(&wb));
+    const char *head = format("%s%s", dirty, str(&decl)), *loop = format("%s%s%s%s", idle, sample, str(&fl), str(&wb));
     if (uses(format("%s%s", head, loop), "st"))
         head = format("    state *st = vst;\n%s", head);
     static const char *const decls[] = {"void *vst", "const double *const *in", "double *const *out"};
@@ -2171,6 +2315,7 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     set(t, "process_args", format("%s, int nframes", params_of(format("%s%s", head, loop), 3, decls, names)));
     set(t, "hoist", head);
     set(t, "sample", sample);
+    set(t, "idle", idle);
     set(t, "flush", str(&fl));
     set(t, "run_end", x->flushes ? "nframes - n > (int)(FLUSH_RUN - t_run) ? n + (int)(FLUSH_RUN - t_run) : nframes"
                                  : "nframes - n > FLUSH_RUN ? n + FLUSH_RUN : nframes");
@@ -2288,6 +2433,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     Ctx x = {.w = w, .c = w->c, .single = opt->single, .energy = opt->energy, .opt = opt};
     const Circuit *c = w->c;
     index_tree(&x);
+    find_idle(&x);
     x.settle = x.nreact || x.nnl || x_probes(c) || (x.energy && x.nsrc);
     Buf update = {0}, reset = {0}, probes = {0}, energy = {0}, kirch = {0}, targets = {0}, cases = {0};
     emit_sample(&x);
@@ -2297,6 +2443,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         Names live = {0};
         Buf d = {0}, wb = {0}, fl = {0};
         sample_text(&x, &live);
+        if (x.nidle)
+            idle_text(&x, &live);
         print_locals(&x, &live, &d, &wb, &fl);
         root_fns(&x, &live);
     }

@@ -628,6 +628,7 @@ const char *fill(const char *tmpl, const Hole *holes, int n);
 typedef struct EmitOpts {
     bool single;        /* float precision */
     bool energy;        /* work accounting in process (--energy); else work() is NAN */
+    bool no_skip;       /* process computes idle contacts' parts every sample (--no-skip) */
     Solver solver;      /* for nonlinear elements that name none */
     int table;          /* points of a diode's piecewise-linear table */
     double tol;         /* Newton: relative step tolerance */

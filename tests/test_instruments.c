@@ -17,6 +17,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
+#include <stdbool.h>
 #include <stdint.h>
 #include <cmocka.h>
 
@@ -323,9 +324,148 @@ static void test_dulcimer_retarget(void **state) {
     tl_voice_free(&v);
 }
 
+/* ---- skipped hammers ---- */
+
+/* The ids of the targets v(NODE) and x(NODE), or -1. */
+static void ic_ids(const wdv_class *cls, const char *node, int ids[2]) {
+    char v[64], x[64];
+    snprintf(v, sizeof v, "v(%s)", node);
+    snprintf(x, sizeof x, "x(%s)", node);
+    ids[0] = ids[1] = -1;
+    for (int i = 0; i < cls->n_ic_targets; i++) {
+        if (!strcmp(cls->ic_targets[i].name, v))
+            ids[0] = i;
+        if (!strcmp(cls->ic_targets[i].name, x))
+            ids[1] = i;
+    }
+}
+
+/* True if the voice's C text holds the loop that skips idle hammers. */
+static bool skips(const tl_voice *v) {
+    char path[256];
+    snprintf(path, sizeof path, "%s/%s.c", v->dir, v->name);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    static char text[1 << 20];
+    size_t n = fread(text, 1, sizeof text - 1, f);
+    fclose(f);
+    text[n] = '\0';
+    return strstr(text, "the contacts are open") != NULL;
+}
+
+/* A play of a voice with hammers: strikes of each hammer in turn at
+ * random speeds and gaps, param moves in between (the dulcimer's hammers
+ * change strings), blocks of random length.  Run by the voice that skips
+ * idle hammers and by the one that computes them (--no-skip): every
+ * output and the stored energy after every block are the same, bit for
+ * bit, because while a contact is open its mass keeps its velocity and
+ * its taps pass their waves untouched in both. */
+static void skip_same(const char *net, const char *const *nodes, int nnodes, int single) {
+    static const char *const noskip[] = {"--no-skip", NULL};
+    tl_voice v[2];
+    void *st[2];
+    assert_int_equal(tl_voice_build_args(net, single, NULL, NULL, &v[0]), 0);
+    assert_int_equal(tl_voice_build_args(net, single, noskip, NULL, &v[1]), 0);
+    assert_true(skips(&v[0]));
+    assert_false(skips(&v[1]));
+    const wdv_class *cls = v[0].cls;
+    for (int k = 0; k < 2; k++)
+        st[k] = tl_state_new(v[k].cls, 48000);
+    tl_rng r;
+    tl_rng_seed(&r, tl_hash_str(net) + (uint64_t)single);
+    double **in = tl_bufs_new(cls->n_inputs ? cls->n_inputs : 1, 128);
+    double **out[2] = {tl_bufs_new(cls->n_outputs, 128), tl_bufs_new(cls->n_outputs, 128)};
+    const long n = 72000;
+    long differ = 0, strikes = 0, nonzero = 0;
+    long next = 2400;
+    for (long t = 0; t < n;) {
+        int len = 1 + (int)(tl_rng_uniform(&r) * 127);
+        if (t >= next) { /* strike a hammer, or move one */
+            int h = (int)(tl_rng_uniform(&r) * nnodes), ids[2];
+            ic_ids(cls, nodes[h], ids);
+            double vals[2] = {1 + 3 * tl_rng_uniform(&r), -(0.2e-3 + 2e-3 * tl_rng_uniform(&r))};
+            if (cls->n_params && tl_rng_uniform(&r) < 0.3) {
+                int p = (int)(tl_rng_uniform(&r) * cls->n_params);
+                double x = cls->params[p].min + tl_rng_uniform(&r) * (cls->params[p].max - cls->params[p].min);
+                for (int k = 0; k < 2; k++)
+                    v[k].cls->set_param(st[k], p, x);
+            } else {
+                assert_true(ids[0] >= 0 && ids[1] >= 0);
+                for (int k = 0; k < 2; k++)
+                    assert_int_equal(v[k].cls->set_ic(st[k], 2, ids, vals), 0);
+                strikes++;
+            }
+            next += 1200 + (long)(tl_rng_uniform(&r) * 6000);
+        }
+        for (int i = 0; i < cls->n_inputs; i++)
+            for (int j = 0; j < len; j++)
+                in[i][j] = 0;
+        for (int k = 0; k < 2; k++)
+            run(v[k].cls, st[k], in, out[k], len);
+        for (int o = 0; o < cls->n_outputs; o++)
+            for (int j = 0; j < len; j++) {
+                differ += memcmp(&out[0][o][j], &out[1][o][j], sizeof(double)) != 0;
+                nonzero += out[0][o][j] != 0;
+            }
+        double e0 = v[0].cls->energy(st[0]), e1 = v[1].cls->energy(st[1]);
+        differ += memcmp(&e0, &e1, sizeof e0) != 0;
+        t += len;
+    }
+    printf("%s (%s): %ld strikes; %ld output samples and energies differ between the voice that skips idle "
+           "hammers and the one that does not\n", net, single ? "float" : "double", strikes, differ);
+    assert_true(strikes > 3);
+    assert_true(nonzero > n / 2);
+    assert_int_equal(differ, 0);
+    const int nout = cls->n_outputs;
+    tl_bufs_free(in, cls->n_inputs ? cls->n_inputs : 1);
+    for (int k = 0; k < 2; k++) {
+        tl_bufs_free(out[k], nout);
+        tl_state_free(st[k]);
+        tl_voice_free(&v[k]);
+    }
+}
+
+static void test_skip_exact(void **state) {
+    (void)state;
+    static const char *const eight[] = {"h1", "h2", "h3", "h4", "h5", "h6", "h7", "h8"};
+    static const char *const dulcimer[] = {"m1", "m2"};
+    static const char *const mid[] = {"h1", "h2", "h3"};
+    for (int single = 0; single < 2; single++) {
+        skip_same("tests/nets/hammers_eight.wdn", eight, 8, single);
+        skip_same("netlists/dulcimer.wdn", dulcimer, 2, single);
+        skip_same("netlists/piano_mid.wdn", mid, 3, single);
+    }
+}
+
+/* A hammer hung from a spring, or with a damper, moves while its contact
+ * is open: it is computed every sample, never skipped. */
+static void test_skip_only_idle(void **state) {
+    (void)state;
+    char dir[64];
+    assert_int_equal(tl_temp_dir(dir, "wdc_skip"), 0);
+    static const char *const extra[] = {"spring KR h1 0 k=50", "damper DR h1 0 c=0.01", "mass MX h1 m=1m"};
+    for (int k = 0; k < 3; k++) {
+        char text[2048];
+        snprintf(text, sizeof text,
+                 ".voice sprung\n.domain mechanical\n.ic v(h1)=3 x(h1)=-1m\n"
+                 "string S 0 br L=0.62 f0=261.63 mu=6.8m t60=12 taps=t1@0.12\n"
+                 "mass MH1 h1 m=2.9m\ncontact H1 h1 t1 k=4.5e9 alpha=2.5\n%s\n"
+                 "mass MB br m=0.3\nspring KB br 0 k=2meg\n.output bridge v(br)\n.end\n", extra[k]);
+        const char *net = tl_write_file(dir, "sprung.wdn", text);
+        tl_voice v;
+        assert_int_equal(tl_voice_build(net, 0, &v), 0);
+        printf("hammer with '%s': %s\n", extra[k], skips(&v) ? "skipped while idle" : "computed every sample");
+        assert_int_equal(skips(&v), k == 2); /* two masses hold their velocities too */
+        tl_voice_free(&v);
+    }
+    tl_remove_dir(dir);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_idle_contacts),
+        cmocka_unit_test(test_skip_exact),
+        cmocka_unit_test(test_skip_only_idle),
         cmocka_unit_test(test_dulcimer_retarget),
         cmocka_unit_test(test_param_jumps),
         cmocka_unit_test(test_passivity_under_play),
