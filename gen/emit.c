@@ -1736,10 +1736,41 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
     Lin *L = lin_new(sx, c->nnodes - 1);
     int *ea = arena_alloc(sizeof(int) * (size_t)c->nelems);
     Sym *val = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + 1));
+    /* capacitors across one pair of nodes hold one voltage: the first
+     * stands for them all (lead, sign sg against it), and their current
+     * parts as their capacitances, as their conductances 1/R (gsum) */
+    int *lead = arena_alloc(sizeof(int) * (size_t)c->nelems), *sg = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    Sym *gsum = arena_alloc(sizeof(Sym) * (size_t)c->nelems);
+    bool *shared = arena_alloc(sizeof(bool) * (size_t)c->nelems);
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        lead[i] = -1, sg[i] = 1;
+        for (int j = 0; j < i && lead[i] < 0 && prim_ic(e) == IC_CAP; j++) {
+            const Elem *f = &c->elems[j];
+            if (prim_ic(f) == IC_CAP && lead[j] == j && ((f->n[0] == e->n[0] && f->n[1] == e->n[1]) ||
+                                                         (f->n[0] == e->n[1] && f->n[1] == e->n[0])))
+                lead[i] = j, sg[i] = f->n[0] == e->n[0] ? 1 : -1;
+        }
+        if (lead[i] < 0 && prim_ic(e) == IC_CAP)
+            lead[i] = i;
+    }
+    for (int i = 0; i < c->nelems; i++)
+        if (lead[i] >= 0 && lead[i] != i) {
+            int l = lead[i];
+            Sym gi = sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", x->w->leaf_of[i]->id))));
+            if (!shared[l])
+                gsum[l] = sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", x->w->leaf_of[l]->id))));
+            shared[l] = true;
+            gsum[l] = sx_add(sx, gsum[l], gi);
+        }
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         const WNode *n = x->w->leaf_of[i];
         int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1, k = -1;
+        if (kind == IC_CAP && lead[i] != i) {
+            ea[i] = -1;
+            continue;
+        }
         Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
         Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
         Sym v = sym_k(0);
@@ -1780,10 +1811,13 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
         int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1;
         Sym v = sx_sub(sx, p >= 0 ? pot[p] : sym_k(0), q >= 0 ? pot[q] : sym_k(0));
         if (kind == IC_CAP || kind == IC_IND) {
-            int r = x->react[n->id];
-            Sym Ri = sx_mul(sx, sym_ext(dbl(x, format("st->c_R[%d]", n->id))), cur[ea[i]]);
+            int r = x->react[n->id], l = kind == IC_CAP ? lead[i] : i;
+            Sym Ri = shared[l] ? sx_div(sx, cur[ea[l]], gsum[l])
+                                  : sx_mul(sx, sym_ext(dbl(x, format("st->c_R[%d]", n->id))), cur[ea[i]]);
             if (kind == IC_CAP)
-                v = val[ea[i]];
+                v = val[ea[l]];
+            if (sg[i] < 0)
+                v = sx_neg(sx, v), Ri = sx_neg(sx, Ri);
             lhs[nout] = format("st->s_a[%d]", r), rhs[nout++] = sx_add(sx, v, Ri);
             lhs[nout] = format("st->s_b[%d]", r), rhs[nout++] = sx_sub(sx, v, Ri);
         }

@@ -1,7 +1,7 @@
 /*
  * test_abi.c - the voice ABI as a host sees it: descriptors and units,
  * param clamping and refusal, reset re-applying .ic, set_ic as a strike on
- * a running voice, energy of a thrown mass, work counted only in a voice
+ * a running voice (one mass, and two on one node), energy of a thrown mass, work counted only in a voice
  * built with --energy (NaN without), and the float build.
  */
 #include <stdarg.h>
@@ -101,6 +101,36 @@ static void test_strike_and_reset(void **s) {
     tl_voice_free(&v);
 }
 
+/* Two masses on one node (chain3's S3.M and Mextra) move together: a
+ * strike of the node sets both, its current parts as their masses, and
+ * the kinetic energy is that of the pair; its first sample carries on
+ * from there. */
+static void test_strike_parallel_masses(void **s) {
+    (void)s;
+    for (int single = 0; single < 2; single++) {
+        tl_voice v;
+        assert_int_equal(tl_voice_build("netlists/chain3.wdn", single, &v), 0);
+        const wdv_class *c = v.cls;
+        void *st = tl_state_new(c, 48000);
+        int id = find_ic(c, "v(c)");
+        assert_true(id >= 0);
+        double val = 0.8;
+        assert_int_equal(c->set_ic(st, 1, &id, &val), 0);
+        double want = 0.5 * (15e-3 + 40e-3) * val * val, got = c->energy(st);
+        printf("%s: v(c) = 0.8 m/s on 15 g + 40 g: energy %.17g J, %.3g off\n", single ? "float" : "double", got,
+               fabs(got - want) / want);
+        assert_true(fabs(got - want) <= (single ? 1e-6 : 1e-14) * want);
+        double zero[1] = {0}, o[3][1];
+        const double *in[1] = {zero};
+        double *out[3] = {o[0], o[1], o[2]};
+        c->process(st, in, out, 1);
+        /* after one sample of 1/48000 s, x(c) has moved by about v T */
+        assert_true(fabs(o[1][0] - val / 48000) < 0.01 * val / 48000);
+        tl_state_free(st);
+        tl_voice_free(&v);
+    }
+}
+
 /* Without --energy a voice counts no work: work() is NaN, and what it
  * renders is the same to the bit. */
 static void test_work_only_with_energy(void **s) {
@@ -136,6 +166,7 @@ int main(void) {
         cmocka_unit_test(test_descriptors),
         cmocka_unit_test(test_params),
         cmocka_unit_test(test_strike_and_reset),
+        cmocka_unit_test(test_strike_parallel_masses),
         cmocka_unit_test(test_work_only_with_energy),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
