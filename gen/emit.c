@@ -1628,9 +1628,9 @@ static const char *c_string(const char *s) {
     emit(&b, "\"");
     return str(&b);
 }
-/* The params a waveguide's loop design depends on: the voice redesigns the
- * loop when one moves, so a host steps them rather than ramping them
- * (WDV_PARAM_STEP). */
+/* The params a waveguide's loop design or tap positions depend on: a
+ * host steps them rather than ramping them (WDV_PARAM_STEP), and those
+ * of the design (wg_params) ask for a new one (WDV_PARAM_DESIGN). */
 static uint64_t step_params(const Circuit *c) {
     uint64_t mask = 0;
     for (int w = 0; w < c->nwgs; w++) {
@@ -1666,7 +1666,8 @@ static const char *descriptors(Ctx *x, char which) {
             emit(&b, "%s{%s, %s, %.17g, %s, %s, %s}", i ? ", " : "", c_string(p->name), c_string(p->unit), p->def,
                  isfinite(p->min) ? format("%.17g", p->min) : "-1e308",
                  isfinite(p->max) ? format("%.17g", p->max) : "1e308",
-                 (step_params(c) >> i) & 1 ? "WDV_PARAM_STEP" : "0");
+                 (wg_params(c) >> i) & 1 ? "WDV_PARAM_STEP | WDV_PARAM_DESIGN"
+                 : (step_params(c) >> i) & 1 ? "WDV_PARAM_STEP" : "0");
         }
     }
     emit(&b, "}");

@@ -2289,7 +2289,7 @@ static const scparam *motion_set(const wdrt_scene *S, int vi, int j) {
  * not count it). */
 static int designs(const render *R, int vi, int id) {
     const wdv_class *c = R->S->voices[vi].cls;
-    return c && c->prepare && id >= 0 && id < c->n_params && (c->params[id].flags & WDV_PARAM_STEP);
+    return c && c->prepare && id >= 0 && id < c->n_params && (c->params[id].flags & WDV_PARAM_DESIGN);
 }
 
 /* Set s (from 1) of a play: its own sets, then its voice's params bound

@@ -39,6 +39,10 @@ typedef struct wdv_param {
  * frame it names instead of ramping it (a change that redesigns part of the
  * voice, such as a waveguide's loop, where a ramp would only cost). */
 #define WDV_PARAM_STEP 1u
+/* A change of this param redesigns part of the voice (a string's or tube's
+ * loop): wdv_class.prepare makes that design off the audio thread.  Such
+ * a param is also WDV_PARAM_STEP. */
+#define WDV_PARAM_DESIGN 2u
 
 /* One initial-condition target: the velocity (or voltage) of a node, or
  * the displacement (or flux) of a node relative to ground. */
@@ -97,7 +101,7 @@ typedef struct wdv_class {
      * that follows the set_param calls of those values then takes it
      * instead of designing in its first block.  Without them a change
      * works the same, in that block.  The params it concerns carry
-     * WDV_PARAM_STEP.  design_size 0, prepare and install NULL: the voice
+     * WDV_PARAM_DESIGN.  design_size 0, prepare and install NULL: the voice
      * has no such work. */
     size_t design_size;
     void (*prepare)(double fs, const double *params, void *design);

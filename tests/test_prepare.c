@@ -88,6 +88,10 @@ static void test_prepared_is_inline(void **s) {
     assert_true(c->design_size > 0);
     int id = param_id(c, "detune");
     assert_true(c->params[id].flags & WDV_PARAM_STEP);
+    assert_true(c->params[id].flags & WDV_PARAM_DESIGN);
+    /* hit moves the hammers' taps: a step, but the loops keep their design */
+    assert_true(c->params[param_id(c, "hit")].flags & WDV_PARAM_STEP);
+    assert_false(c->params[param_id(c, "hit")].flags & WDV_PARAM_DESIGN);
     double p[64], *a = malloc(sizeof(double) * BLOCKS * BLOCK), *b = malloc(sizeof(double) * BLOCKS * BLOCK);
     void *d = malloc(c->design_size);
     long before = ca_allocs;
