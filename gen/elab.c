@@ -34,6 +34,9 @@ typedef struct Scope {
     SrcPos usepos;        /* the instance name on its `use` line */
 } Scope;
 
+/* The kinds of names, each checked for names that differ only in case. */
+enum { NS_NODE, NS_ELEM, NS_PARAM, NS_INPUT, NS_MODEL, NS_BLOCK, NS_OUT, NS_N };
+
 typedef struct Elab {
     Circuit *c;
     Vec nodes;     /* const char* */
@@ -53,6 +56,8 @@ typedef struct Elab {
     Map node_ix, param_ix, input_ix, model_ix, block_ix, out_ix;
     Map elem_ix;   /* element name -> index of the first element of that name */
     bool elem_ix_stale; /* while mutators take elements out: search elems */
+    Map fold_ix[NS_N]; /* each namespace's names in lower case -> index in fold_name */
+    Vec fold_name[NS_N]; /* the first spelling of each */
     long nelements; /* element lines elaborated, blocks expanded */
     IcSpec **ic_at[2]; /* node -> its .ic v(node) [0] or x(node) [1], or NULL */
     bool have_voice, have_domain, have_rate;
@@ -67,6 +72,22 @@ struct Lower {
 };
 
 /* ---- names ---- */
+
+/* Two names of one kind that differ only in case are one name mistyped
+ * (SPICE reads them as one): an error at the second. */
+static void case_check(Elab *E, int ns, const char *name, SrcPos pos) {
+    static const char *const what[NS_N] = {"node", "element", "param", "input", "model", "block", "output"};
+    char *low = arena_strdup(name);
+    for (char *q = low; *q; q++)
+        *q = (char)tolower((unsigned char)*q);
+    int i = map_get(&E->fold_ix[ns], low);
+    if (i < 0) {
+        vec_push(&E->fold_name[ns], (void *)name);
+        map_put(&E->fold_ix[ns], low, E->fold_name[ns].len - 1);
+    } else if (strcmp(E->fold_name[ns].data[i], name))
+        error_at(pos, "%s '%s' differs from %s '%s' only in case", what[ns], name, what[ns],
+                 (const char *)E->fold_name[ns].data[i]);
+}
 
 static bool is_ground(const char *s) { return !strcmp(s, "0") || !strcasecmp(s, "gnd"); }
 
@@ -167,6 +188,7 @@ static int node_of(Elab *E, Scope *S, const char *name, SrcPos pos, bool create)
     if (!create)
         error_at(pos, "unknown node '%s'", full);
     full = arena_strdup(full);
+    case_check(E, NS_NODE, full, pos);
     vec_push(&E->nodes, (void *)full);
     map_put(&E->node_ix, full, E->nodes.len - 1);
     return E->nodes.len - 1;
@@ -357,6 +379,7 @@ static void collect(Elab *E, Program *prog, BlockDef *into) {
                          cur->name);
             if (map_get(&E->block_ix, l->name) >= 0)
                 error_at(l->namepos, "duplicate block name '%s'", l->name);
+            case_check(E, NS_BLOCK, l->name, l->namepos);
             cur = arena_alloc(sizeof(BlockDef));
             cur->name = l->name;
             cur->head = l;
@@ -482,6 +505,7 @@ static void dir_param(Elab *E, Line *l) {
     if (p->def < p->min || p->def > p->max)
         error_at(v->pos, "default %g of param '%s' lies outside [%g, %g]", p->def, l->name, p->min,
                  p->max);
+    case_check(E, NS_PARAM, p->name, l->namepos);
     vec_push(&E->params, p);
     map_put(&E->param_ix, p->name, E->params.len - 1);
 }
@@ -525,12 +549,14 @@ static void dir_simple(Elab *E, Line *l) {
                 error_at(l->args[i].pos, "input name '%s' is not an identifier", s);
             if (find_input(E, s) >= 0)
                 error_at(l->args[i].pos, "duplicate input '%s'", s);
+            case_check(E, NS_INPUT, s, l->args[i].pos);
             vec_push(&E->inputs, (void *)s);
             map_put(&E->input_ix, s, E->inputs.len - 1);
         }
     } else if (!strcmp(d, ".model")) {
         if (map_get(&E->model_ix, l->name) >= 0)
             error_at(l->namepos, "duplicate model '%s'", l->name);
+        case_check(E, NS_MODEL, l->name, l->namepos);
         const char *k = l->args[0].name;
         int kind = block_by_keyword(k, (int)strlen(k));
         if (kind < 0 && strlen(k) == 1)
@@ -575,6 +601,7 @@ Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int 
         SrcPos p = l->namepos;
         error_at(p, "duplicate element name '%s'", name);
     }
+    case_check(E, NS_ELEM, name, l->namepos);
     Elem *e = arena_alloc(sizeof(Elem));
     e->kind = k;
     e->name = name;
@@ -956,6 +983,7 @@ static void dir_output(Elab *E, Line *l) {
         p->kind = r->fn == 'i' ? PR_I : PR_F;
         p->elem = probe_elem(E, r);
     }
+    case_check(E, NS_OUT, p->name, l->namepos);
     vec_push(&E->outs, p);
     map_put(&E->out_ix, p->name, E->outs.len - 1);
 }

@@ -297,6 +297,27 @@ static void test_duplicates(void **state) {
     free(out);
 }
 
+/* Names of one kind that differ only in case: the second is an error
+ * that names the first, never a second node, param or element. */
+static void test_case(void **state) {
+    (void)state;
+    expect_error(".input in\n" SRC "R1 a out 1k\nR2 OUT 0 1k\n",
+                 "t.wdn:4:4: error: node 'OUT' differs from node 'out' only in case");
+    expect_error(".input in\n" SRC "R1 a 0 1k\nr1 a 0 2k\n",
+                 "t.wdn:4:1: error: element 'r1' differs from element 'R1' only in case");
+    expect_error(".param gain 1\n.param Gain 2\n", "t.wdn:2:8: error: param 'Gain' differs from param 'gain' only in case");
+    expect_error(".input in In\n", "t.wdn:1:11: error: input 'In' differs from input 'in' only in case");
+    expect_error(".model M diode Is=1e-12\n.model m diode Is=2e-12\n",
+                 "t.wdn:2:8: error: model 'm' differs from model 'M' only in case");
+    expect_error(".block rc x\nR1 x 0 1k\n.endblock\n.block RC x\nR2 x 0 1k\n.endblock\n",
+                 "t.wdn:4:8: error: block 'RC' differs from block 'rc' only in case");
+    expect_error(".input in\n" SRC "R1 a 0 1k\n.output o v(a)\n.output O i(R1)\n",
+                 "t.wdn:5:9: error: output 'O' differs from output 'o' only in case");
+    /* ground is 0, gnd or GND; one spelling of a node throughout is fine */
+    Circuit *c = load_ok("t.wdn", ".input in\n" SRC "R1 a Out 1k\nC1 Out GND 1u\n.output y v(Out)\n");
+    assert_int_equal(c->nnodes, 3);
+}
+
 /* ---- names that are not defined ---- */
 
 static void test_undefined_params(void **state) {
@@ -763,6 +784,7 @@ int main(void) {
         cmocka_unit_test(test_node_counts),
         cmocka_unit_test(test_unknown_keys),
         cmocka_unit_test(test_duplicates),
+        cmocka_unit_test(test_case),
         cmocka_unit_test(test_undefined_params),
         cmocka_unit_test(test_undefined_models),
         cmocka_unit_test(test_undefined_blocks),
