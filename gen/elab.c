@@ -56,6 +56,7 @@ typedef struct Elab {
     Map node_ix, param_ix, input_ix, model_ix, block_ix, out_ix;
     Map elem_ix;   /* element name -> index of the first element of that name */
     bool elem_ix_stale; /* while mutators take elements out: search elems */
+    Map dropped_ix; /* resistors to nodes nothing else meets, taken out -> 1 */
     Map fold_ix[NS_N]; /* each namespace's names in lower case -> index in fold_name */
     Vec fold_name[NS_N]; /* the first spelling of each */
     long nelements; /* element lines elaborated, blocks expanded */
@@ -950,6 +951,69 @@ static void mutate(Elab *E) {
     index_elems(E);
 }
 
+/* A resistor to a node that nothing else meets carries no current, and
+ * that node has the potential of the resistor's other end (SPICE allows
+ * it: an output read through a resistor that leads nowhere).  Each such
+ * resistor leaves the network, repeatedly (a chain of them goes), and
+ * its far node becomes another name of its near one; a probe of the
+ * resistor's current reads 0. */
+static void drop_dangling(Elab *E) {
+    int nn = E->nodes.len, ne = E->elems.len;
+    int *deg = arena_alloc(sizeof(int) * (size_t)nn), *alias = arena_alloc(sizeof(int) * (size_t)nn);
+    bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
+    for (int i = 0; i < ne; i++)
+        for (int k = 0; k < 2; k++)
+            deg[((Elem *)E->elems.data[i])->n[k]]++;
+    for (int n = 0; n < nn; n++)
+        alias[n] = n;
+    int dropped = 0;
+    for (bool more = true; more;) {
+        more = false;
+        for (int i = 0; i < ne; i++) {
+            Elem *e = E->elems.data[i];
+            if (gone[i] || e->kind != E_R || e->n[0] == e->n[1])
+                continue;
+            for (int k = 0; k < 2; k++) {
+                int far = e->n[k], near = e->n[!k];
+                if (far == 0 || deg[far] != 1)
+                    continue;
+                gone[i] = more = true;
+                dropped++;
+                deg[far]--, deg[near]--;
+                alias[far] = near;
+                map_put(&E->dropped_ix, e->name, 1);
+                break;
+            }
+        }
+    }
+    if (!dropped)
+        return;
+    int *map = arena_alloc(sizeof(int) * (size_t)nn);
+    Vec nodes = {0}, elems = {0};
+    for (int n = 0; n < nn; n++)
+        if (alias[n] == n) {
+            map[n] = nodes.len;
+            vec_push(&nodes, E->nodes.data[n]);
+        }
+    E->node_ix = (Map){0};
+    for (int n = 0; n < nn; n++) {
+        int to = n;
+        while (alias[to] != to)
+            to = alias[to];
+        map_put(&E->node_ix, E->nodes.data[n], map[to]);
+    }
+    for (int i = 0; i < ne; i++)
+        if (!gone[i]) {
+            Elem *e = E->elems.data[i];
+            for (int k = 0; k < 2; k++)
+                e->n[k] = map[e->n[k]];
+            vec_push(&elems, e);
+        }
+    E->nodes = nodes;
+    E->elems = elems;
+    index_elems(E);
+}
+
 /* ---- probes and initial conditions ---- */
 
 /* Index of the element a probe names. */
@@ -981,7 +1045,7 @@ static void dir_output(Elab *E, Line *l) {
         if (r->fn == 'f' && E->c->domain == DOM_ELECTRICAL)
             error_at(r->pos, "f() reads a force; this netlist is electrical (use i())");
         p->kind = r->fn == 'i' ? PR_I : PR_F;
-        p->elem = probe_elem(E, r);
+        p->elem = map_get(&E->dropped_ix, r->arg[0]) >= 0 ? -1 : probe_elem(E, r);
     }
     case_check(E, NS_OUT, p->name, l->namepos);
     vec_push(&E->outs, p);
@@ -1217,6 +1281,7 @@ static Circuit *elaborate(SrcFile *f) {
             element(&E, &top, l);
     }
     mutate(&E);
+    drop_dangling(&E);
     for (int i = 0; i < E.top.len; i++) {
         Line *l = E.top.data[i];
         if (!strcmp(l->head, ".output"))

@@ -1089,7 +1089,9 @@ static void emit_outputs(Ctx *x) {
         const Probe *p = &c->outs[k];
         switch (p->kind) {
         case PR_V: put(x, NULL, "        out[%d][n] = (double)(%s);\n", k, pair_v(x, p->n)); break;
-        case PR_I: case PR_F: put(x, NULL, "        out[%d][n] = (double)(%s);\n", k, elem_i(x, p->elem)); break;
+        case PR_I: case PR_F: /* a resistor that led nowhere carries nothing */
+            put(x, NULL, "        out[%d][n] = %s;\n", k, p->elem < 0 ? "0.0" : format("(double)(%s)", elem_i(x, p->elem)));
+            break;
         case PR_X:
             put(x, NULL, "        {\n            const real t_v = %s;\n"
                          "            s_x%d += 0.5 * k_T * ((double)t_v + (double)s_xv%d);\n            s_xv%d = t_v;\n"

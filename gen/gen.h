@@ -408,7 +408,7 @@ typedef struct Probe {
     const char *name; /* output name */
     ProbeKind kind;
     int n[2];         /* PR_V / PR_X: nodes (n[1] = 0 for ground) */
-    int elem;         /* PR_I / PR_F: element index */
+    int elem;         /* PR_I / PR_F: element index; -1: a resistor to a node nothing else meets (0) */
     SrcPos pos;
 } Probe;
 

@@ -1186,7 +1186,7 @@ void refsim_step(refsim *s, const double *in, double *out) {
             break;
         case PR_I:
         case PR_F:
-            o = s->i[p->elem];
+            o = p->elem < 0 ? 0.0 : s->i[p->elem]; /* -1: a resistor that led nowhere */
             break;
         case PR_X: {
             real vv = s->nodev[p->n[0]] - s->nodev[p->n[1]];

@@ -509,12 +509,39 @@ static void test_not_supported_yet(void **state) {
 
 static void test_graph(void **state) {
     (void)state;
-    expect_error(".input in\n" SRC "R1 a b 1k\n", "t.wdn:3:1: error: node 'b' has only one connection (R1)");
+    expect_error(".input in\n" SRC "C1 a b 1u\n", "t.wdn:3:1: error: node 'b' has only one connection (C1)");
     expect_error(".input in\nV1 a 0 in\n", "t.wdn:2:1: error: node 'a' has only one connection (V1)");
+    /* a resistor to a node nothing else meets carries no current: it goes,
+     * and leaves the source alone at a */
+    expect_error(".input in\n" SRC "R1 a b 1k\n", "t.wdn:2:1: error: node 'a' has only one connection (V1)");
     expect_error(".input in\n" SRC "R1 a 0 1k\nR2 b c 1k\nC2 b c 1u\n",
                  "t.wdn:4:1: error: node 'b' has no path to ground (node 0)");
     expect_error(".input in\nV1 a b in\nR1 a b 1k\n",
                  "t.wdn:2:1: error: nothing connects to ground (node 0)");
+}
+
+/* An output read through resistors that lead nowhere, as SPICE allows:
+ * they carry no current, so their far nodes are their near node under
+ * other names and a probe of their current reads 0. */
+static void test_dangling_resistors(void **state) {
+    (void)state;
+    Circuit *c = load_ok("t.wdn", ".input in\n" SRC "R1 a b 1k\nC1 b 0 1u\nR2 b m 10k\nR3 m out 10k\n"
+                                  ".output o v(out)\n.output mid v(m, 0)\n.output b v(b)\n.output i i(R3)\n"
+                                  ".output j i(R1)\n");
+    assert_int_equal(c->nelems, 3);
+    assert_int_equal(c->nnodes, 3);
+    int b = c->outs[2].n[0];
+    assert_string_equal(c->nodes[b], "b");
+    assert_int_equal(c->outs[0].n[0], b);
+    assert_int_equal(c->outs[1].n[0], b);
+    assert_int_equal(c->outs[3].elem, -1);
+    assert_string_equal(c->elems[c->outs[4].elem].name, "R1");
+    /* a damper to a point nothing else holds: no force either */
+    c = load_ok("t.wdn", ".domain mechanical\n.input f\nforce F1 m 0 f\nmass M1 m m=1\ndamper D1 m free c=2\n"
+                         ".output v v(free)\n");
+    assert_int_equal(c->nelems, 2);
+    expect_error(".input in\n" SRC "R1 a b 1k\nC1 b 0 1u\nR2 b out 1k\n.output o i(R9)\n",
+                 "t.wdn:6:13: error: unknown element 'R9'");
 }
 
 /* ---- includes ---- */
@@ -794,6 +821,7 @@ int main(void) {
         cmocka_unit_test(test_values),
         cmocka_unit_test(test_not_supported_yet),
         cmocka_unit_test(test_graph),
+        cmocka_unit_test(test_dangling_resistors),
         cmocka_unit_test(test_include_cycles),
         cmocka_unit_test(test_spice_numbers),
         cmocka_unit_test(test_comments_and_continuations),
