@@ -43,6 +43,7 @@ typedef struct Elab {
     Vec elems;     /* Elem* */
     Vec params;    /* Param* */
     Vec inputs;    /* const char* */
+    Vec input_fn;  /* SrcFn*, parallel to inputs (NULL: none) */
     Vec outs;      /* Probe* */
     Vec ics;       /* IcSpec* */
     Vec models;    /* Line* */
@@ -356,6 +357,7 @@ static void include(Elab *E, Line *l, BlockDef *into) {
     if (strlen(text) != len)
         error_at(l->args[0].pos, "included file '%s' contains a NUL byte", l->args[0].name);
     SrcFile *f = srcfile_new(path, text);
+    f->spice = l->pos.file->spice;
     f->includer = l->pos.file;
     f->inc_line = l->pos.line;
     f->inc_col = l->pos.col;
@@ -511,10 +513,51 @@ static void dir_param(Elab *E, Line *l) {
     map_put(&E->param_ix, p->name, E->params.len - 1);
 }
 
+/* A SPICE deck's keys are its kind's keys in any case.  A model's keys
+ * that the kind does not model (a diode's RS, CJO, TT, BV...) are noted
+ * and left out, so a vendor's model pastes in. */
+static void spice_keys(Line *l, int kind, bool model) {
+    int n = 0;
+    for (int i = 0; i < l->nkv; i++) {
+        KeyVal *k = &l->kv[i];
+        const KindKey *kk = block_desc[kind].kind->keys;
+        while (kk->name && strcasecmp(kk->name, k->key))
+            kk++;
+        if (kk->name)
+            k->key = kk->name;
+        else if (model && !(kind == BK_D && !strcmp(k->key, "level"))) {
+            note_at(k->pos, "%s model '%s': %s= is not modelled and is ignored", block_desc[kind].desc, l->name,
+                    k->key);
+            continue;
+        }
+        l->kv[n++] = *k;
+    }
+    l->nkv = n;
+}
+
+/* SPICE's diode model kind is D; its keys go as spice_keys says. */
+static void spice_model(Line *l) {
+    const char *k = l->args[0].name;
+    int kind = block_by_keyword(k, (int)strlen(k));
+    if (kind < 0 && strlen(k) == 1)
+        kind = block_by_letter((char)toupper((unsigned char)k[0]));
+    if (kind >= 0 && kind != BK_USE)
+        spice_keys(l, kind, true);
+}
+
 static void dir_simple(Elab *E, Line *l) {
     Circuit *c = E->c;
     const char *d = l->head;
-    if (!strcmp(d, ".voice")) {
+    if (!strcmp(d, ".tran")) { /* a deck's step and length: the render's rate and length */
+        double step = lower_const(&l->args[0], "the step of .tran"), stop = lower_const(&l->args[1], "the stop time of .tran");
+        if (!(step > 0) || !(1 / step <= 1e7))
+            error_at(l->args[0].pos, ".tran's step gives a rate of %g Hz; it must be from 1 Hz to 10 MHz", 1 / step);
+        if (!(stop > 0) || !(stop <= 86400))
+            error_at(l->args[1].pos, ".tran's stop time must be above 0 and at most a day");
+        if (!E->have_rate) /* 10u is 100 kHz, not 99999.99999999999 */
+            c->rate = fabs(1 / step - round(1 / step)) <= 1e-9 / step ? round(1 / step) : 1 / step;
+        c->tstop = stop;
+    } else if (!strcmp(d, ".voice")) {
         if (E->have_voice)
             error_at(l->pos, "second .voice line");
         const char *why = voice_name_clash(l->args[0].name);
@@ -552,9 +595,12 @@ static void dir_simple(Elab *E, Line *l) {
                 error_at(l->args[i].pos, "duplicate input '%s'", s);
             case_check(E, NS_INPUT, s, l->args[i].pos);
             vec_push(&E->inputs, (void *)s);
+            vec_push(&E->input_fn, NULL);
             map_put(&E->input_ix, s, E->inputs.len - 1);
         }
     } else if (!strcmp(d, ".model")) {
+        if (l->pos.file->spice)
+            spice_model(l);
         if (map_get(&E->model_ix, l->name) >= 0)
             error_at(l->namepos, "duplicate model '%s'", l->name);
         case_check(E, NS_MODEL, l->name, l->namepos);
@@ -684,6 +730,8 @@ double lower_expr_min(Lower *L, Expr *e, SrcPos pos, const char *what) {
 }
 
 static void check_keys(Line *l) {
+    if (l->pos.file->spice)
+        spice_keys(l, l->kind, false);
     for (int i = 0; i < l->nkv; i++)
         if (!block_has_key(l->kind, l->kv[i].key) && strcmp(l->kv[i].key, "model"))
             error_at(l->kv[i].pos, "unknown key '%s' for %s '%s'", l->kv[i].key,
@@ -737,12 +785,92 @@ static void instantiate(Elab *E, Scope *S, Line *l);
 
 /* An element line: counted, its keys checked, a model's keys lent, its
  * nodes numbered, then lowered by its kind. */
+/* A SPICE deck's independent source, V1 a b [[DC] v] [AC mag [phase]]
+ * [SIN(...) | PULSE(...) | PWL(...) | EXP(...)]: with AC or a time
+ * function it is driven by an input named after it (v1; x1_v1 in an
+ * instance), which a render without --input drives with that function
+ * or its DC value; with a DC value alone it is that constant. */
+static Line *spice_source(Elab *E, Scope *S, Line *l) {
+    if (l->nargs == 3 && l->args[2].kind == VAL_NAME &&
+        (find_input(E, l->args[2].name) >= 0 || find_param(E, l->args[2].name) >= 0))
+        return l; /* driven by an input or param, as in a .wdn */
+    SrcFn *f = arena_alloc(sizeof(SrcFn));
+    bool ac = false, have_dc = false;
+    f->kind = 'd';
+    f->pos = l->namepos;
+    for (int i = 2; i < l->nargs; i++) {
+        const Value *v = &l->args[i];
+        const char *w = v->kind == VAL_NAME ? v->name : "";
+        if (v->kind == VAL_EXPR && !have_dc) {
+            f->dc = lower_const(v, "a source's DC value"), have_dc = true;
+        } else if (!strcmp(w, "dc") && i + 1 < l->nargs && l->args[i + 1].kind == VAL_EXPR) {
+            f->dc = lower_const(&l->args[++i], "a source's DC value"), have_dc = true;
+        } else if (!strcmp(w, "ac")) {
+            ac = true;
+            for (int k = 0; k < 2 && i + 1 < l->nargs && l->args[i + 1].kind == VAL_EXPR; k++)
+                lower_const(&l->args[++i], "a source's AC magnitude or phase");
+        } else if ((!strcmp(w, "sin") || !strcmp(w, "pulse") || !strcmp(w, "pwl") || !strcmp(w, "exp")) &&
+                   i + 1 < l->nargs && l->args[i + 1].kind == VAL_LIST && f->kind == 'd') {
+            const Value *list = &l->args[++i];
+            f->kind = w[1] == 'i' ? 's' : w[1] == 'u' ? 'p' : w[1] == 'w' ? 'w' : 'e';
+            f->v = arena_alloc(sizeof(double) * (size_t)(list->ntoks + 1));
+            for (int k = 0; k < list->ntoks; k++) {
+                const Token *t = &list->toks[k];
+                if (t->kind == TK_COMMA)
+                    continue;
+                if (t->kind != TK_NUMBER)
+                    error_at(t->pos, "expected a number in %s(...), found '%.*s'", w, t->len, t->text);
+                if (!isfinite(t->num))
+                    error_at(t->pos, "%s(...) takes finite numbers", w);
+                f->v[f->nv++] = t->num;
+            }
+            static const int need[] = {['s'] = 3, ['p'] = 2, ['w'] = 2, ['e'] = 2};
+            if (f->nv < need[(int)f->kind] || (f->kind == 'w' && f->nv % 2))
+                error_at(list->pos, f->kind == 'w' ? "pwl(...) takes time, value pairs"
+                                                   : "%s(...) needs at least %d values", w, need[(int)f->kind]);
+            for (int k = 2; f->kind == 'w' && k < f->nv; k += 2)
+                if (!(f->v[k] >= f->v[k - 2]))
+                    error_at(list->pos, "pwl(...) times must not go back");
+        } else {
+            error_at(v->pos, "expected DC, AC, SIN(...), PULSE(...), PWL(...) or EXP(...) in source '%s'", l->name);
+        }
+    }
+    if (!isfinite(f->dc))
+        error_at(l->namepos, "source '%s' has a DC value that is not finite", l->name);
+    Line *n = arena_alloc(sizeof(Line));
+    *n = *l;
+    n->nargs = 3;
+    n->args = arena_alloc(sizeof(Value) * 4);
+    n->args[0] = l->args[0], n->args[1] = l->args[1];
+    Value *drive = &n->args[2];
+    drive->pos = l->namepos;
+    if (!ac && f->kind == 'd') {
+        drive->kind = VAL_EXPR;
+        drive->expr = expr_num(f->dc, l->namepos);
+        return n;
+    }
+    char *in = format("%s%s", S->prefix, l->name);
+    for (char *q = in; *q; q++)
+        if (!isalnum((unsigned char)*q))
+            *q = '_';
+    if (find_input(E, in) >= 0 || find_param(E, in) >= 0)
+        error_at(l->namepos, "source '%s' would be driven by input '%s', but that name is taken", l->name, in);
+    vec_push(&E->inputs, in);
+    vec_push(&E->input_fn, f);
+    map_put(&E->input_ix, in, E->inputs.len - 1);
+    drive->kind = VAL_NAME;
+    drive->name = in;
+    return n;
+}
+
 static void element(Elab *E, Scope *S, Line *l) {
     const Kind *d = block_desc[l->kind].kind;
     if (l->kind == BK_USE) {
         instantiate(E, S, l);
         return;
     }
+    if (l->pos.file->spice && (l->kind == BK_V || l->kind == BK_I) && l->nargs >= 2)
+        l = spice_source(E, S, l);
     if (E->nelements >= MAX_ELEMENTS)
         error_at(l->namepos, "the netlist holds more than %d elements", MAX_ELEMENTS);
     E->nelements++;
@@ -1027,6 +1155,31 @@ static int probe_elem(Elab *E, const Ref *r) {
     error_at(r->argpos[0], "unknown element '%s'", r->arg[0]);
 }
 
+static void dir_output(Elab *E, Line *l);
+
+/* The vectors a deck's .print (.plot, .probe, .save) names, each an
+ * output named after it (v(out): v_out; v(a,b): v_a_b; i(v1): i_v1); a
+ * vector printed twice is one output. */
+static void deck_outputs(Elab *E, Line *l) {
+    for (int i = 0; i < l->nrefs; i++) {
+        const Ref *r = &l->refs[i];
+        char *name = format("%c_%s%s%s", r->fn, r->arg[0], r->arg[1] ? "_" : "", r->arg[1] ? r->arg[1] : "");
+        for (char *q = name; *q; q++)
+            if (!isalnum((unsigned char)*q))
+                *q = '_';
+        if (map_get(&E->out_ix, name) >= 0)
+            continue;
+        Line *o = arena_alloc(sizeof(Line));
+        *o = *l;
+        o->head = ".output";
+        o->name = name;
+        o->namepos = r->pos;
+        o->nrefs = 1;
+        o->refs = (Ref *)r;
+        dir_output(E, o);
+    }
+}
+
 static void dir_output(Elab *E, Line *l) {
     if (map_get(&E->out_ix, l->name) >= 0)
         error_at(l->namepos, "duplicate output '%s'", l->name);
@@ -1246,6 +1399,9 @@ static void finish(Elab *E) {
     c->nodes = (const char **)E->nodes.data;
     c->ninputs = E->inputs.len;
     c->inputs = (const char **)E->inputs.data;
+    c->input_fn = arena_alloc(sizeof(SrcFn *) * (size_t)(E->inputs.len + 1));
+    for (int i = 0; i < E->inputs.len; i++)
+        c->input_fn[i] = i < E->input_fn.len ? E->input_fn.data[i] : NULL;
 }
 
 static Circuit *elaborate(SrcFile *f) {
@@ -1267,8 +1423,24 @@ static Circuit *elaborate(SrcFile *f) {
     collect(&E, parse_file(f), NULL);
     for (int i = 0; i < E.top.len; i++) {
         Line *l = E.top.data[i];
-        if (!strcmp(l->head, ".param"))
+        if (!strcmp(l->head, ".param") && l->pos.file->spice) {
+            /* .param a=1 b=2: every key another param */
+            Line one = *l;
+            one.nkv = 0;
+            dir_param(&E, &one);
+            for (int k = 0; k < l->nkv; k++) {
+                Line *p = arena_alloc(sizeof(Line));
+                *p = one;
+                p->name = l->kv[k].key;
+                p->namepos = l->kv[k].pos;
+                p->args = &l->kv[k].val;
+                p->nargs = 1;
+                dir_param(&E, p);
+            }
+        } else if (!strcmp(l->head, ".param"))
             dir_param(&E, l);
+        else if (!strcmp(l->head, ".skip"))
+            continue;
         else if (l->kind < 0)
             dir_simple(&E, l);
     }
@@ -1284,7 +1456,10 @@ static Circuit *elaborate(SrcFile *f) {
     drop_dangling(&E);
     for (int i = 0; i < E.top.len; i++) {
         Line *l = E.top.data[i];
-        if (!strcmp(l->head, ".output"))
+        if (l->pos.file->spice && (!strcmp(l->head, ".print") || !strcmp(l->head, ".plot") ||
+                                   !strcmp(l->head, ".probe") || !strcmp(l->head, ".save")))
+            deck_outputs(&E, l);
+        else if (!strcmp(l->head, ".output"))
             dir_output(&E, l);
         else if (!strcmp(l->head, ".ic"))
             dir_ic(&E, l);
@@ -1310,7 +1485,9 @@ static Circuit *load(SrcFile *f) {
 }
 
 Circuit *wdc_elaborate_string(const char *name, const char *text) {
-    return load(srcfile_new(name, arena_strdup(text)));
+    SrcFile *f = srcfile_new(name, arena_strdup(text));
+    f->spice = is_spice_path(name);
+    return load(f);
 }
 
 Circuit *wdc_elaborate(const char *path) {
@@ -1335,7 +1512,9 @@ Circuit *wdc_elaborate(const char *path) {
         diag.errors++;
         return NULL;
     }
-    return load(srcfile_new(path, text));
+    SrcFile *f = srcfile_new(path, text);
+    f->spice = is_spice_path(path);
+    return load(f);
 }
 
 const char *domain_unit(Domain d, char fn) {

@@ -45,7 +45,14 @@ struct SrcFile {
     SrcFile *includer;  /* file that included this one, or NULL */
     int inc_line;       /* position of the .include line in includer */
     int inc_col;
+    bool spice;         /* a SPICE deck (DESIGN 3.1): case folded, '$' comments,
+                           'quoted' expressions; the main deck's first line is its title */
 };
+
+/* Read every netlist as a SPICE deck (wdc --spice); otherwise a file
+ * ending .cir, .sp, .spice or .net is one. */
+extern bool spice_always;
+bool is_spice_path(const char *path);
 
 typedef struct SrcPos {
     SrcFile *file;
@@ -419,11 +426,26 @@ typedef struct IcSpec {
     SrcPos pos;
 } IcSpec;
 
+/* The time function of a SPICE deck's independent source (SIN, PULSE,
+ * PWL, EXP, or its DC value alone), which drives the source's input in a
+ * render without --input.  v: the function's values as the deck gives
+ * them (PWL: time, value pairs). */
+typedef struct SrcFn {
+    char kind; /* 'd' DC, 's' SIN, 'p' PULSE, 'w' PWL, 'e' EXP */
+    double dc;
+    double *v;
+    int nv;
+    SrcPos pos;
+} SrcFn;
+
+double srcfn_at(const SrcFn *f, double t, double step);
+
 typedef struct Circuit {
     const char *name;     /* voice name */
     const char *path;     /* main netlist file */
     Domain domain;
     double rate;          /* default sample rate, Hz */
+    double tstop;         /* a deck's .tran stop time: a render's length (s), 0: none */
     int nnodes;           /* node 0 is ground */
     const char **nodes;
     Elem *elems;
@@ -431,6 +453,7 @@ typedef struct Circuit {
     Param *params;
     int nparams;
     const char **inputs;
+    const SrcFn **input_fn; /* per input: a deck source's time function, NULL: none */
     int ninputs;
     Probe *outs;
     int nouts;

@@ -2,8 +2,10 @@
  *
  * The netlist is line oriented: every logical line ends with TK_EOL.  A
  * line whose first non-blank character is '+' continues the previous one
- * (SPICE).  '#' starts a comment anywhere; '*' at the start of a line is a
- * SPICE comment line.  Words (names, nodes, numbers, directives) are runs
+ * (SPICE).  '#' and ';' start a comment anywhere; '*' at the start of a
+ * line is a SPICE comment line.  A SPICE deck (SrcFile.spice) is read in
+ * lower case after its title line, with '$' comments too and 'quoted'
+ * expressions.  Words (names, nodes, numbers, directives) are runs
  * of letters, digits, '_' and '.'; whether a word is a number is decided by
  * the parser where it expects one, so SPICE node names such as `1` work. */
 #include <ctype.h>
@@ -166,9 +168,54 @@ static void lex_word(Lexer *L) {
     L->p = q;
 }
 
+bool spice_always;
+
+bool is_spice_path(const char *path) {
+    static const char *const ext[] = {".cir", ".sp", ".spice", ".net"};
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    if (spice_always)
+        return true;
+    for (int i = 0; dot && (!slash || dot > slash) && i < (int)(sizeof ext / sizeof ext[0]); i++)
+        if (!strcasecmp(dot, ext[i]))
+            return true;
+    return false;
+}
+
+/* A SPICE deck is read in lower case (quoted file names aside); tokens
+ * point into that copy, which keeps every position of the original. */
+static const char *folded(const char *text) {
+    char *t = arena_strdup(text);
+    bool quoted = false;
+    for (char *q = t; *q; q++) {
+        quoted = *q == '"' ? !quoted : *q == '\n' ? false : quoted;
+        if (!quoted)
+            *q = (char)tolower((unsigned char)*q);
+    }
+    return t;
+}
+
+/* 'expression' in a SPICE deck: the same as {expression}. */
+static void lex_quote(Lexer *L) {
+    const char *start = L->p, *q = start + 1;
+    while (*q && *q != '\'' && *q != '\n')
+        q++;
+    if (*q != '\'')
+        error_at(pos_of(L, start), "unterminated quote: expected ' on the same line");
+    Token *t = push(L, TK_LBRACE, start + 1, (int)(q - start - 1));
+    t->pos = pos_of(L, start + 1);
+    L->p = q + 1;
+}
+
 Token *lex_file(SrcFile *f, int *ntok) {
-    Lexer L = {.file = f, .p = f->text, .line = 1, .line_start = f->text};
+    const char *text = f->spice ? folded(f->text) : f->text;
+    Lexer L = {.file = f, .p = text, .line = 1, .line_start = text};
     bool at_line_start = true;
+    if (f->spice && !f->includer) { /* the title line */
+        while (*L.p && *L.p != '\n')
+            L.p++;
+        if (*L.p)
+            newline(&L);
+    }
     while (*L.p) {
         char c = *L.p;
         if (c == '\n') {
@@ -189,7 +236,7 @@ Token *lex_file(SrcFile *f, int *ntok) {
             L.p++;
             continue;
         }
-        if (c == '#' || c == ';' || (c == '*' && at_line_start)) {
+        if (c == '#' || c == ';' || (c == '*' && at_line_start) || (c == '$' && f->spice)) {
             while (*L.p && *L.p != '\n')
                 L.p++;
             continue;
@@ -197,6 +244,8 @@ Token *lex_file(SrcFile *f, int *ntok) {
         at_line_start = false;
         if (c == '{') {
             lex_brace(&L);
+        } else if (c == '\'' && f->spice) {
+            lex_quote(&L);
         } else if (c == '"') {
             const char *s = L.p + 1, *q = s;
             while (*q && *q != '"' && *q != '\n')

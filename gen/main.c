@@ -48,6 +48,7 @@ static void usage(FILE *f) {
         "          it process does no such accounting and work() returns NaN (energy() is always there)\n"
         "--no-skip: process computes every part every sample; by default it skips a hammer (a mass\n"
         "          behind a contact on a string) while the contact stays open, with the same output\n"
+        "--spice: read FILE as a SPICE deck (as a file ending .cir, .sp, .spice or .net is read)\n"
         "-delab, -dwdf print the elaborated circuit or the adaptor tree.\n"
         "exit status: 0 ok, 1 netlist error, 2 usage error, 3 toolchain or internal error\n");
 }
@@ -87,6 +88,7 @@ static Opts parse_args(int argc, char **argv) {
         else if (!strcmp(a, "--check")) o.check = true;
         else if (!strcmp(a, "--energy")) o.energy = true;
         else if (!strcmp(a, "--no-skip")) o.no_skip = true;
+        else if (!strcmp(a, "--spice")) spice_always = true;
         else if (!strcmp(a, "--render")) o.render = TAKE();
         else if (!strcmp(a, "--csv")) o.csv = TAKE();
         else if (!strcmp(a, "--dot")) o.dot = TAKE();
@@ -412,7 +414,7 @@ static Event *read_events(const char *path, EventCtx *x, int *nev) {
  * before the voice is compiled. */
 typedef struct Render {
     long n;           /* frames */
-    Signal in[16];
+    Signal in[64];
     Event *ev;
     int nev;
     double *chan;     /* n frames of each output, channel after channel */
@@ -430,9 +432,12 @@ static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *r
         fprintf(stderr, "wdc: error: too many channels to render (64 at most)\n");
         exit(EXIT_TOOL);
     }
-    long n = o->seconds > 0 ? lround(o->seconds * fs) : -1;
-    double tmax = o->seconds > 0 ? o->seconds : MAX_SECONDS;
-    const char *why = o->seconds > 0 ? "the end of the render" : "a day, the longest render";
+    /* --seconds, or a deck's .tran stop time */
+    double secs = o->seconds > 0 ? o->seconds : c->tstop;
+    long n = secs > 0 ? lround(secs * fs) : -1;
+    double tmax = secs > 0 ? secs : MAX_SECONDS;
+    const char *why = o->seconds > 0 ? "the end of the render" : secs > 0 ? "the end of the render (.tran)"
+                                                                           : "a day, the longest render";
     for (int k = 0; k < o->ninputs; k++)
         if (is_wav(o->inputs[k])) {
             rd->in[k] = read_wav_input(o->inputs[k], fs);
@@ -450,6 +455,14 @@ static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *r
         n = rd->ev[rd->nev - 1].frame + lround(3 * fs);
     if (n < 0)
         n = lround(fs);
+    /* a deck's sources that no --input drives: their time functions */
+    for (int k = o->ninputs; k < c->ninputs; k++)
+        if (c->input_fn[k]) {
+            Signal *s = &rd->in[k];
+            *s = (Signal){checked_calloc((size_t)n + 1, sizeof(double), format("input '%s'", c->inputs[k])), n};
+            for (long i = 0; i < n; i++)
+                s->data[i] = srcfn_at(c->input_fn[k], (double)i / fs, 1 / fs);
+        }
     for (int k = 0; k < o->ninputs; k++) {
         Signal *s = &rd->in[k];
         if (!is_wav(o->inputs[k])) {
@@ -560,7 +573,7 @@ static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, voi
         if (end - pos > 64)
             end = pos + 64;
         for (int k = 0; k < c->ninputs; k++)
-            ptr_i[k] = k < o->ninputs ? rd->in[k].data + pos : NULL;
+            ptr_i[k] = k < o->ninputs || c->input_fn[k] ? rd->in[k].data + pos : NULL;
         for (int k = 0; k < c->nouts; k++)
             ptr_o[k] = rd->chan + (size_t)k * (size_t)n + (size_t)pos;
         wdrt_render(cls, st, ptr_i, ptr_o, end - pos, 64);

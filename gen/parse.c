@@ -318,7 +318,7 @@ static Value value(Parser *P) {
     P->tok++;
     /* taps=h@0.12,p@0.5 and similar run on as a list of tokens */
     if (is_punct(P->tok, '@') || is_punct(P->tok, ':') || is_punct(P->tok, '/') ||
-        P->tok->kind == TK_COMMA) {
+        (P->tok->kind == TK_COMMA && !P->file->spice)) { /* a deck's commas part keys: D(IS=1n, N=2) */
         v.kind = VAL_LIST;
         v.toks = t;
         while (!at_eol(P) && !(P->tok->kind == TK_IDENT && P->tok[1].kind == TK_EQ))
@@ -334,6 +334,10 @@ static bool at_keyval(Parser *P) { return P->tok->kind == TK_IDENT && P->tok[1].
 static void keyvals(Parser *P, Line *l) {
     Vec kv = {0};
     while (!at_eol(P)) {
+        if (P->tok->kind == TK_COMMA && P->file->spice) { /* SPICE: D(IS=1n, N=2) */
+            P->tok++;
+            continue;
+        }
         if (!at_keyval(P)) {
             Token *t = P->tok;
             error_at(t->pos, "unexpected '%.*s': expected key=value", t->len, t->text);
@@ -363,6 +367,9 @@ static const char *word(Parser *P, const char *what) {
     P->tok++;
     return tok_str(t);
 }
+
+/* A deck's 'params:' before the keys of a .subckt or an X line. */
+static bool at_params(Parser *P) { return tok_is(P->tok, "params") && is_punct(P->tok + 1, ':'); }
 
 static void add_arg(Vec *args, Value v) {
     Value *p = arena_alloc(sizeof(Value));
@@ -396,6 +403,27 @@ static void element(Parser *P, Line *l) {
                      block_desc[kind].desc, l->head);
         l->namepos = P->tok->pos;
         l->name = word(P, "a name");
+    } else if (P->file->spice && h->kind == TK_IDENT && h->text[0] == 'x') {
+        /* a deck's X1 n1 n2 SUBCKT [params:] k=v: use SUBCKT X1 n1 n2 k=v */
+        l->name = l->head;
+        l->namepos = h->pos;
+        l->kind = BK_USE;
+        P->tok++;
+        Vec args = {0};
+        while (!at_eol(P) && !at_keyval(P) && !at_params(P))
+            add_arg(&args, node_value(P));
+        if (args.len < 1)
+            error_at(P->tok->pos, "instance '%s' needs its nodes and the name of its .subckt", l->name);
+        Value sub = *(Value *)args.data[args.len - 1];
+        Vec use = {0};
+        add_arg(&use, sub);
+        for (int i = 0; i < args.len - 1; i++)
+            add_arg(&use, *(Value *)args.data[i]);
+        if (at_params(P))
+            P->tok += 2;
+        set_args(l, &use);
+        keyvals(P, l);
+        return;
     } else {
         kind = h->kind == TK_IDENT ? block_by_letter(h->text[0]) : -1;
         if (kind < 0)
@@ -424,6 +452,13 @@ static void element(Parser *P, Line *l) {
                          d->nnodes, d->nnodes > 1 ? "s" : "", i);
             add_arg(&args, node_value(P));
         }
+    }
+    if (P->file->spice && (kind == BK_V || kind == BK_I)) { /* DC 1 AC 1 SIN(...): elab reads them */
+        while (!at_eol(P) && !at_keyval(P))
+            add_arg(&args, value(P));
+        set_args(l, &args);
+        keyvals(P, l);
+        return;
     }
     for (const char *a = d->args; *a; a++) {
         if (*a == 't')
@@ -502,6 +537,8 @@ static bool directive(Parser *P, Line *l) {
             if (at_eol(P))
                 error_at(P->tok->pos, "missing %s after %s", d[1] == 'v' ? "voice name" : "domain", d);
             add_arg(&args, node_value(P));
+        } else if (!strcmp(d, ".ends") && P->file->spice && P->tok->kind == TK_IDENT && P->tok[1].kind != TK_EQ) {
+            P->tok++; /* .ends NAME */
         }
     } else if (!strcmp(d, ".rate")) {
         if (at_eol(P))
@@ -520,27 +557,79 @@ static bool directive(Parser *P, Line *l) {
         if (at_eol(P))
             error_at(P->tok->pos, "missing default value of param '%s'", l->name);
         add_arg(&args, value(P));
+        /* a deck's .param a=1 b=2: each key another param (elab) */
     } else if (!strcmp(d, ".model")) {
         l->namepos = P->tok->pos;
         l->name = word(P, "a model name");
         if (at_eol(P))
             error_at(P->tok->pos, "missing the kind of model '%s' (such as D)", l->name);
         add_arg(&args, node_value(P));
+        if (P->tok->kind == TK_LPAREN) { /* SPICE's KIND(key=value ...) */
+            Token *open = P->tok++;
+            Token *close = P->tok;
+            while (close->kind != TK_RPAREN && close->kind != TK_EOL && close->kind != TK_EOF)
+                close++;
+            if (close->kind != TK_RPAREN)
+                error_at(open->pos, "unclosed '(' in .model");
+            if (close[1].kind != TK_EOL && close[1].kind != TK_EOF)
+                error_at(close[1].pos, "unexpected '%.*s' after the model's ')'", close[1].len, close[1].text);
+            close->kind = TK_EOL;
+            set_args(l, &args);
+            keyvals(P, l);
+            if (P->tok == close)
+                P->tok++;
+            return false;
+        }
     } else if (!strcmp(d, ".include")) {
         if (P->tok->kind != TK_STRING && P->tok->kind != TK_IDENT)
             error_at(P->tok->pos, "expected a file name after .include");
         add_arg(&args, value(P));
-    } else if (!strcmp(d, ".block")) {
+    } else if (!strcmp(d, ".block") || (P->file->spice && !strcmp(d, ".subckt"))) {
+        l->head = ".block"; /* a deck's .subckt NAME n1 n2 [params:] k=v is a block */
         l->namepos = P->tok->pos;
         l->name = word(P, "a block name");
-        while (!at_eol(P) && !at_keyval(P))
+        while (!at_eol(P) && !at_keyval(P) && !at_params(P))
             add_arg(&args, node_value(P));
+        if (at_params(P))
+            P->tok += 2;
     } else if (!strcmp(d, ".output")) {
         l->namepos = P->tok->pos;
         l->name = word(P, "an output name");
         Vec refs = {0};
         push_ref(&refs, NULL, ref(P), NULL);
         set_refs(l, &refs, NULL);
+    } else if (P->file->spice && (!strcmp(d, ".print") || !strcmp(d, ".plot") || !strcmp(d, ".probe") ||
+                                  !strcmp(d, ".save"))) {
+        /* the vectors a deck prints are its outputs: v(n), v(a,b), i(V1) */
+        Vec refs = {0};
+        if (P->tok->kind == TK_IDENT && P->tok[1].kind != TK_LPAREN) /* tran, ac, all... */
+            P->tok++;
+        while (!at_eol(P)) {
+            if (P->tok->kind == TK_IDENT && P->tok[1].kind != TK_LPAREN) { /* 'all' and such */
+                P->tok++;
+                continue;
+            }
+            push_ref(&refs, NULL, ref(P), NULL);
+        }
+        set_refs(l, &refs, NULL);
+    } else if (P->file->spice && !strcmp(d, ".tran")) {
+        while (!at_eol(P) && P->tok->kind != TK_IDENT)
+            add_arg(&args, value(P));
+        if (args.len < 2)
+            error_at(P->tok->pos, ".tran needs a step and a stop time");
+        if (P->tok->kind == TK_IDENT && tok_is(P->tok, "uic"))
+            P->tok++;
+    } else if (P->file->spice && (!strcmp(d, ".ac") || !strcmp(d, ".dc") || !strcmp(d, ".op") ||
+                                  !strcmp(d, ".noise") || !strcmp(d, ".options") || !strcmp(d, ".option") ||
+                                  !strcmp(d, ".temp") || !strcmp(d, ".meas") || !strcmp(d, ".measure") ||
+                                  !strcmp(d, ".four") || !strcmp(d, ".width") || !strcmp(d, ".nodeset") ||
+                                  !strcmp(d, ".global") || !strcmp(d, ".title") || !strcmp(d, ".disto") ||
+                                  !strcmp(d, ".sens") || !strcmp(d, ".tf") || !strcmp(d, ".pz"))) {
+        note_at(l->headpos, "'%s' is an analysis or control line; the voice has no use for it and skips it", d);
+        while (!at_eol(P))
+            P->tok++;
+        l->head = ".skip";
+        return false;
     } else if (!strcmp(d, ".ic")) {
         Vec refs = {0}, vals = {0};
         if (at_eol(P))
@@ -586,6 +675,17 @@ Program *parse_file(SrcFile *f) {
         l->head = tok_str(P.tok);
         l->kind = -1;
         bool end = false;
+        if (f->spice && tok_is(P.tok, ".control")) { /* ngspice's scripts, to .endc */
+            Token *start = P.tok;
+            while (P.tok->kind != TK_EOF && !tok_is(P.tok, ".endc"))
+                P.tok++;
+            if (P.tok->kind == TK_EOF)
+                error_at(l->pos, "'.control' without '.endc'");
+            note_at(start->pos, "'.control' starts ngspice's commands; they are skipped to '.endc'");
+            while (!at_eol(&P))
+                P.tok++;
+            continue;
+        }
         if (P.tok->kind == TK_IDENT && P.tok->text[0] == '.')
             end = directive(&P, l);
         else if (P.tok->kind == TK_IDENT || P.tok->kind == TK_NUMBER)

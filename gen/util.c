@@ -1,5 +1,6 @@
 /* util.c: arena, strings, files and diagnostics. */
 #include <errno.h>
+#include <math.h>
 #include <sys/stat.h>
 #include <stdlib.h>
 #include <string.h>
@@ -264,4 +265,53 @@ void buf_add(Buf *b, const char *fmt, ...) {
     va_start(ap, fmt);
     buf_vadd(b, fmt, ap);
     va_end(ap);
+}
+
+/* The value of a deck source's time function at t (s), as SPICE's
+ * transient reads it; step: the default rise and fall (1/rate). */
+double srcfn_at(const SrcFn *f, double t, double step) {
+    const double *v = f->v;
+    int n = f->nv;
+#define ARG(i, def) (n > (i) ? v[i] : (def))
+    switch (f->kind) {
+    case 's': {
+        double td = ARG(3, 0), th = ARG(4, 0), ph = ARG(5, 0) * 3.14159265358979323846 / 180;
+        if (t < td)
+            return v[0] + v[1] * sin(ph);
+        return v[0] + v[1] * exp(-(t - td) * th) * sin(2 * 3.14159265358979323846 * v[2] * (t - td) + ph);
+    }
+    case 'p': {
+        double td = ARG(2, 0), tr = ARG(3, 0) > 0 ? v[3] : step, tf = ARG(4, 0) > 0 ? v[4] : step;
+        double pw = ARG(5, INFINITY), per = ARG(6, 0) > 0 ? v[6] : INFINITY;
+        if (t < td)
+            return v[0];
+        double u = isfinite(per) ? fmod(t - td, per) : t - td;
+        if (u < tr)
+            return v[0] + (v[1] - v[0]) * u / tr;
+        if (u < tr + pw)
+            return v[1];
+        if (u < tr + pw + tf)
+            return v[1] + (v[0] - v[1]) * (u - tr - pw) / tf;
+        return v[0];
+    }
+    case 'w':
+        if (t <= v[0])
+            return v[1];
+        for (int k = 2; k < n; k += 2)
+            if (t < v[k])
+                return v[k - 1] + (v[k + 1] - v[k - 1]) * (t - v[k - 2]) / (v[k] - v[k - 2]);
+        return v[n - 1];
+    case 'e': {
+        double td1 = ARG(2, 0), tau1 = ARG(3, 0) > 0 ? v[3] : step, td2 = ARG(4, td1 + step),
+               tau2 = ARG(5, 0) > 0 ? v[5] : step, y = v[0];
+        if (t > td1)
+            y += (v[1] - v[0]) * (1 - exp(-(t - td1) / tau1));
+        if (t > td2)
+            y += (v[0] - v[1]) * (1 - exp(-(t - td2) / tau2));
+        return y;
+    }
+    default:
+        return f->dc;
+    }
+#undef ARG
 }

@@ -7,7 +7,8 @@
  * random bytes, deletions, insertions of punctuation, digits and scale
  * letters, insertions of keywords, token duplication, line splicing,
  * joining, deletion and duplication, truncation, very long runs), then
- * loads the text with wdc_load_string and, when that succeeds, builds the
+ * loads the text with wdc_load_string (as a SPICE deck, fuzz.cir, one
+ * time in three) and, when that succeeds, builds the
  * adaptor tree and checks it (wdf_build, scatter_check), as bin/wdc does.
  * About one iteration in forty writes the text to a file with NUL bytes
  * in it and goes through wdc_load instead.
@@ -53,6 +54,7 @@
 #define ITER_SECONDS 5    /* one iteration longer than this is a hang */
 #define MAX_FAILS 8       /* failing batches reported before giving up */
 #define NAME "netlists/fuzz.wdn" /* includes resolve against netlists/ */
+#define DECK "netlists/fuzz.cir" /* the same read as a SPICE deck, one iteration in three */
 
 /* ---- random numbers (splitmix64) ---- */
 
@@ -73,6 +75,14 @@ static size_t rng_below(Rng *r, size_t n) { return (size_t)(rng_next(r) % n); }
 /* ---- seeds ---- */
 
 static const char *hand_seeds[] = {
+    /* SPICE decks (read as such in the iterations named fuzz.cir) */
+    "Vox-style tone stack, a title that reads like a source\n"
+    ".param rt=220k 'cb'=22n\nV1 IN 0 DC 0 AC 1 SIN(0 1 1k 0 0 90) $ the drive\nVCC vcc 0 9\n"
+    "R1 in a {rt}\nC1 a OUT 'cb*2'\nR2 out 0 1meg ; load\nRb vcc out 1meg\nRx out dangling 10k\n"
+    ".model D1N914 D(IS=2.52n, N=1.752 RS=.568 CJO=4p)\nD1 out 0 d1n914\n"
+    ".tran 10u 20m uic\n.ac dec 10 10 100k\n.control\nrun\n.endc\n.print tran v(OUT) v(in,out) i(r1)\n.END\n",
+    "pulse and pwl\nV2 a 0 PULSE(0 5 1m 1u 1u 2m 4m)\nI1 0 b PWL(0 0 1m 1m 2m 0)\nR1 a b 1k\nC1 b 0 1u\n"
+    "V3 c 0 EXP(0 1 0 1m 2m 1m)\nL1 c b 10m\n.options reltol=1e-4\n.save v(b) all\n.end\n",
     /* every directive */
     ".voice all_dirs\n.domain electrical\n.rate 44.1k\n.input in in2\n"
     ".param g 0.5 min=0 max=1 unit=V/V\n.param Rb=10k min=1k max=100k\n"
@@ -537,8 +547,9 @@ static const char *check_error_text(const char *out, const char *name, const cha
 }
 
 /* Runs one input; returns a complaint or NULL. */
-static const char *run_one(const char *text, size_t len, bool as_file, Stats *st, char **out) {
+static const char *run_one(const char *text, size_t len, bool as_file, bool deck, Stats *st, char **out) {
     static char path[64];
+    const char *name = deck ? DECK : NAME;
     if (as_file) {
         snprintf(path, sizeof path, "/tmp/wdc_fuzz_%ld.wdn", (long)getpid());
         FILE *f = fopen(path, "wb");
@@ -549,12 +560,12 @@ static const char *run_one(const char *text, size_t len, bool as_file, Stats *st
     size_t outlen;
     FILE *saved = diag.out;
     diag.out = open_memstream(out, &outlen);
-    Circuit *c = as_file ? wdc_load(path) : wdc_load_string(NAME, text);
+    Circuit *c = as_file ? wdc_load(path) : wdc_load_string(name, text);
     const char *bad = NULL;
     if (!c) {
         st->rejected_load++;
         fflush(diag.out);
-        bad = check_error_text(*out, as_file ? path : NAME, text, len);
+        bad = check_error_text(*out, as_file ? path : name, text, len);
     } else {
         jmp_buf jb;
         jmp_buf *prev = diag.jmp;
@@ -571,7 +582,7 @@ static const char *run_one(const char *text, size_t len, bool as_file, Stats *st
         } else {
             st->rejected_build++;
             fflush(diag.out);
-            bad = check_error_text(*out, as_file ? path : NAME, text, len);
+            bad = check_error_text(*out, as_file ? path : name, text, len);
         }
         diag.jmp = prev;
     }
@@ -624,7 +635,7 @@ static void run_range(const Seeds *s, uint64_t seed, long from, long to, Stats *
         }
         char *out = NULL;
         alarm(ITER_SECONDS);
-        const char *bad = run_one(b.p, b.len, as_file, st, &out);
+        const char *bad = run_one(b.p, b.len, as_file, i % 3 == 1, st, &out);
         alarm(0);
         if (verbose)
             fputs(out, stderr);

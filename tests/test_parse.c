@@ -544,6 +544,128 @@ static void test_dangling_resistors(void **state) {
                  "t.wdn:6:13: error: unknown element 'R9'");
 }
 
+/* ---- SPICE decks ---- */
+
+/* Loads text as the deck "t.cir": the circuit (NULL on an error) and
+ * everything printed into *out (to free). */
+static Circuit *deck(const char *text, char **out) {
+    Capture cap;
+    capture_begin(&cap);
+    Circuit *c = wdc_load_string("t.cir", text);
+    *out = capture_end(&cap);
+    return c;
+}
+
+static void expect_deck_error(const char *text, const char *want) {
+    char *out;
+    assert_null(deck(text, &out));
+    char *got = first_line(out);
+    if (strcmp(got, want))
+        fail_msg("deck:\n%s\nexpected: %s\n     got: %s", text, want, got);
+    free(got);
+    free(out);
+}
+
+static int input_named(const Circuit *c, const char *name) {
+    for (int i = 0; i < c->ninputs; i++)
+        if (!strcmp(c->inputs[i], name))
+            return i;
+    return -1;
+}
+
+/* A deck as ngspice reads it: its first line is the title (even one that
+ * reads like a source), names and keywords in any case are one, '$' and
+ * ';' start comments, .param lists and 'quoted' expressions, a diode
+ * model in parentheses with SPICE's keys (those we do not model noted),
+ * .tran for the rate and length, .print's vectors as outputs, analysis
+ * and control lines noted and skipped. */
+static void test_deck(void **state) {
+    (void)state;
+    char *out;
+    Circuit *c = deck("Vox AC30 top boost (a title, not a source)\n"
+                      "* a comment line\n"
+                      ".PARAM rval=2.2K cval='10n*2' $ two params\n"
+                      "V1 IN 0 DC 0 AC 1 SIN(0 1 1k)\n"
+                      "VCC Vcc 0 9 ; a rail\n"
+                      "R1 in OUT {rval}\nC1 Out 0 'cval'\nRb vcc out 1MEG\n"
+                      ".MODEL D1N914 D(IS=2.52n, N=1.752 RS=.568)\nD1 out 0 d1n914\n"
+                      ".tran 10u 50m\n.ac dec 10 10 100k\n.control\nrun\n.endc\n"
+                      ".print TRAN V(out) v(in,out) I(r1)\n.END\n",
+                      &out);
+    if (!c)
+        fail_msg("deck rejected:\n%s", out);
+    assert_int_equal(c->nnodes, 4); /* 0, in, out, vcc */
+    assert_int_equal(c->nelems, 6);
+    assert_true(c->rate == 1e5);
+    assert_true(c->tstop == 0.05);
+    assert_int_equal(c->nouts, 3);
+    assert_string_equal(c->outs[0].name, "v_out");
+    assert_string_equal(c->outs[1].name, "v_in_out");
+    assert_string_equal(c->outs[2].name, "i_r1");
+    assert_int_equal(c->nparams, 2);
+    assert_true(fabs(c->params[1].def - 2e-8) < 1e-22);
+    /* V1 has AC and SIN: an input of its own; VCC is a constant 9 V */
+    int v1 = input_named(c, "v1");
+    assert_true(v1 >= 0);
+    assert_int_equal(c->ninputs, 1);
+    assert_non_null(c->input_fn[v1]);
+    assert_int_equal(c->input_fn[v1]->kind, 's');
+    assert_true(strstr(out, "t.cir:9:35: note: diode model 'd1n914': rs= is not modelled and is ignored") != NULL);
+    assert_true(strstr(out, "t.cir:12:1: note: '.ac' is an analysis or control line") != NULL);
+    assert_true(strstr(out, "t.cir:13:1: note: '.control' starts ngspice's commands") != NULL);
+    assert_null(strstr(out, "error"));
+    free(out);
+    /* .subckt with params, X instances in any case */
+    c = deck("Two RC sections\n.subckt rcsec IN OUT params: r=1k c=100n\nR1 in out {r}\nC1 out 0 {c}\n"
+             ".ends rcsec\nV1 a 0 DC 0 AC 1\nX1 a b RCSEC\nX2 b c rcsec params: r=2k\n.print tran v(c)\n.end\n",
+             &out);
+    if (!c)
+        fail_msg("deck rejected:\n%s", out);
+    free(out);
+    assert_int_equal(c->nelems, 5);
+    assert_string_equal(c->elems[3].name, "x2.r1");
+    assert_true(c->elems[3].val && expr_eval(c->elems[3].val, NULL) == 2000);
+    /* a .wdn keeps its case, takes no title and has no '$' comments */
+    expect_error("V1 a 0 in $ drive\n", "t.wdn:1:11: error: too many nodes or values for voltage source 'V1': unexpected '$'");
+    /* errors in a deck at their place */
+    expect_deck_error("title\nV1 a 0 FOO 1\nR1 a 0 1k\n.end\n",
+                      "t.cir:2:8: error: expected DC, AC, SIN(...), PULSE(...), PWL(...) or EXP(...) in source 'v1'");
+    expect_deck_error("title\nV1 a 0 PWL(0 0 1m)\nR1 a 0 1k\n.end\n", "t.cir:2:11: error: pwl(...) takes time, value pairs");
+    expect_deck_error("title\nV1 a 0 SIN(0 1)\nR1 a 0 1k\n.end\n", "t.cir:2:11: error: sin(...) needs at least 3 values");
+    expect_deck_error("title\nR1 a 0 'rv\n.end\n", "t.cir:2:8: error: unterminated quote: expected ' on the same line");
+    expect_deck_error("title\nV1 a 0 1\nR1 a 0 1k\n.tran 0 1\n.end\n",
+                      "t.cir:4:7: error: .tran's step gives a rate of inf Hz; it must be from 1 Hz to 10 MHz");
+    expect_deck_error("title\n.control\nrun\n", "t.cir:2:1: error: '.control' without '.endc'");
+    expect_deck_error("title\n.model d1 d(is=1n n=2\n", "t.cir:2:12: error: unclosed '(' in .model");
+    assert_true(is_spice_path("a/b.CIR") && is_spice_path("x.sp") && is_spice_path("x.spice") &&
+                is_spice_path("x.net") && !is_spice_path("x.wdn") && !is_spice_path("net.d/x"));
+}
+
+/* The time functions of a deck's sources as SPICE's transient reads them. */
+static void test_deck_sources(void **state) {
+    (void)state;
+    double sv[] = {0.5, 2, 1000, 1e-3, 0, 90}, pv[] = {0, 5, 1e-3, 1e-4, 2e-4, 1e-3, 4e-3},
+           wv[] = {0, 0, 1e-3, 1, 2e-3, 0}, ev[] = {0, 1, 0, 1e-3, 5e-3, 2e-3};
+    SrcFn s = {'s', 0, sv, 6, {0}}, p = {'p', 0, pv, 7, {0}}, w = {'w', 0, wv, 6, {0}}, e = {'e', 0, ev, 6, {0}};
+    double T = 1e-5;
+    assert_true(fabs(srcfn_at(&s, 0.5e-3, T) - 2.5) < 1e-12); /* before the delay: VO + VA sin(phase) */
+    assert_true(fabs(srcfn_at(&s, 1.25e-3, T) - (0.5 + 2 * cos(M_PI / 2))) < 1e-12);
+    assert_true(fabs(srcfn_at(&s, 1.125e-3, T) - (0.5 + 2 * cos(M_PI / 4))) < 1e-12);
+    assert_true(srcfn_at(&p, 0.9e-3, T) == 0);
+    assert_true(fabs(srcfn_at(&p, 1.05e-3, T) - 2.5) < 1e-12); /* half way up */
+    assert_true(srcfn_at(&p, 1.5e-3, T) == 5);
+    assert_true(fabs(srcfn_at(&p, 2.2e-3, T) - 2.5) < 1e-12); /* half way down */
+    assert_true(srcfn_at(&p, 3e-3, T) == 0);
+    assert_true(srcfn_at(&p, 5.5e-3, T) == 5); /* the next period */
+    assert_true(fabs(srcfn_at(&w, 0.5e-3, T) - 0.5) < 1e-12);
+    assert_true(fabs(srcfn_at(&w, 1.5e-3, T) - 0.5) < 1e-12);
+    assert_true(srcfn_at(&w, 5e-3, T) == 0);
+    assert_true(fabs(srcfn_at(&e, 1e-3, T) - (1 - exp(-1))) < 1e-12);
+    assert_true(fabs(srcfn_at(&e, 7e-3, T) - ((1 - exp(-7)) - (1 - exp(-1)))) < 1e-12);
+    SrcFn d = {'d', 9, NULL, 0, {0}};
+    assert_true(srcfn_at(&d, 1, T) == 9);
+}
+
 /* ---- includes ---- */
 
 static void expect_file_error(const char *path, const char *want_suffix, int included) {
@@ -822,6 +944,8 @@ int main(void) {
         cmocka_unit_test(test_not_supported_yet),
         cmocka_unit_test(test_graph),
         cmocka_unit_test(test_dangling_resistors),
+        cmocka_unit_test(test_deck),
+        cmocka_unit_test(test_deck_sources),
         cmocka_unit_test(test_include_cycles),
         cmocka_unit_test(test_spice_numbers),
         cmocka_unit_test(test_comments_and_continuations),
