@@ -58,6 +58,8 @@ typedef struct Elab {
     Map elem_ix;   /* element name -> index of the first element of that name */
     bool elem_ix_stale; /* while mutators take elements out: search elems */
     Map dropped_ix; /* resistors to nodes nothing else meets, taken out -> 1 */
+    Map paired_ix;  /* a diode merged into the one it faces -> index of that one's name in paired */
+    Vec paired;     /* const char*: the diodes that took in their facing twins */
     Map fold_ix[NS_N]; /* each namespace's names in lower case -> index in fold_name */
     Vec fold_name[NS_N]; /* the first spelling of each */
     long nelements; /* element lines elaborated, blocks expanded */
@@ -1079,6 +1081,48 @@ static void mutate(Elab *E) {
     index_elems(E);
 }
 
+/* The value of a diode's key when it holds no param, else NaN. */
+static double fixed(const Expr *e) { return e && !has_names(e) ? expr_eval(e, NULL) : NAN; }
+
+/* Two diodes facing each other across one pair of nodes with the same
+ * law (the usual symmetric clipper) are one antiparallel pair, whose
+ * closed form (pair=1) gives the same answer as solving the two: the
+ * first takes the second in.  Diodes that differ, or carry params, stay
+ * two (and are refused together until several nonlinearities can share
+ * a root). */
+static void pair_diodes(Elab *E) {
+    int ne = E->elems.len, n = 0;
+    bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
+    for (int i = 0; i < ne; i++) {
+        Elem *a = E->elems.data[i];
+        if (gone[i] || a->kind != E_NL || a->nl->kind != NL_DIODE || a->nl->pair || a->nl->mutated)
+            continue;
+        for (int j = i + 1; j < ne; j++) {
+            Elem *b = E->elems.data[j];
+            if (gone[j] || b->kind != E_NL || b->nl->kind != NL_DIODE || b->nl->pair || b->nl->mutated ||
+                b->n[0] != a->n[1] || b->n[1] != a->n[0] || b->nl->solver != a->nl->solver)
+                continue;
+            double ka[3] = {fixed(a->nl->Is), fixed(a->nl->n), fixed(a->nl->Vt)};
+            double kb[3] = {fixed(b->nl->Is), fixed(b->nl->n), fixed(b->nl->Vt)};
+            if (!(ka[0] == kb[0] && ka[1] == kb[1] && ka[2] == kb[2]))
+                continue;
+            a->nl->pair = true;
+            gone[j] = true;
+            vec_push(&E->paired, (void *)a->name);
+            map_put(&E->paired_ix, b->name, E->paired.len - 1);
+            break;
+        }
+    }
+    Vec elems = {0};
+    for (int i = 0; i < ne; i++)
+        if (!gone[i])
+            vec_push(&elems, E->elems.data[i]), n++;
+    if (n == ne)
+        return;
+    E->elems = elems;
+    index_elems(E);
+}
+
 /* A resistor to a node that nothing else meets carries no current, and
  * that node has the potential of the resistor's other end (SPICE allows
  * it: an output read through a resistor that leads nowhere).  Each such
@@ -1198,6 +1242,11 @@ static void dir_output(Elab *E, Line *l) {
         if (r->fn == 'f' && E->c->domain == DOM_ELECTRICAL)
             error_at(r->pos, "f() reads a force; this netlist is electrical (use i())");
         p->kind = r->fn == 'i' ? PR_I : PR_F;
+        int twin = map_get(&E->paired_ix, r->arg[0]);
+        if (twin >= 0)
+            error_at(r->argpos[0], "diode '%s' faces '%s' and the two are solved as one antiparallel pair: probe "
+                     "%c(%s), the pair's current", r->arg[0], (const char *)E->paired.data[twin], r->fn,
+                     (const char *)E->paired.data[twin]);
         p->elem = map_get(&E->dropped_ix, r->arg[0]) >= 0 ? -1 : probe_elem(E, r);
     }
     case_check(E, NS_OUT, p->name, l->namepos);
@@ -1453,6 +1502,7 @@ static Circuit *elaborate(SrcFile *f) {
             element(&E, &top, l);
     }
     mutate(&E);
+    pair_diodes(&E);
     drop_dangling(&E);
     for (int i = 0; i < E.top.len; i++) {
         Line *l = E.top.data[i];

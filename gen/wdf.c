@@ -342,9 +342,13 @@ static void check_nonlinear(Wdf *wd, const Root *r) {
         return;
     const Elem *first = &wd->c->elems[r->edge[r->nport].elem];
     const Elem *second = &wd->c->elems[r->edge[r->nport + 1].elem];
+    bool facing = first->nl->kind == NL_DIODE && second->nl->kind == NL_DIODE && first->n[0] == second->n[1] &&
+                  first->n[1] == second->n[0];
     error_begin(second->pos, "'%s' and '%s' are coupled with no delay between them: each instantaneously "
                 "coupled part may hold one nonlinear element; a delay element between them (a transmission "
-                "line, string or tube) would decouple them", first->name, second->name);
+                "line, string or tube) would decouple them%s", first->name, second->name,
+                facing ? " (two facing diodes with one law are taken as one antiparallel pair, pair=1; these "
+                         "differ)" : "");
     note_at(first->pos, "'%s' is here", first->name);
     for (int k = r->nport + 2; k < r->nport + r->nnl; k++)
         note_at(wd->c->elems[r->edge[k].elem].pos, "'%s', coupled to them too, is here",

@@ -544,6 +544,35 @@ static void test_dangling_resistors(void **state) {
                  "t.wdn:6:13: error: unknown element 'R9'");
 }
 
+/* Two diodes facing each other with one law are the antiparallel pair
+ * (pair=1): the symmetric clipper compiles, in a deck or a .wdn.  Two
+ * that differ stay two, and the refusal says why. */
+static void test_facing_diodes(void **state) {
+    (void)state;
+    Circuit *c = load_ok("t.wdn", ".input in\n" SRC ".model dm diode Is=2.52n n=1.752\nR1 a b 2.2k\nC1 b 0 10n\n"
+                                  "D1 b 0 dm\nD2 0 b dm\n.output o v(b)\n");
+    assert_int_equal(c->nelems, 4);
+    const Elem *d = elem_named(c, "D1");
+    assert_true(d->nl->pair);
+    assert_true(expr_eval(d->nl->Is, NULL) == 2.52e-9);
+    expect_error(".input in\n" SRC ".model dm diode Is=2.52n\nR1 a b 1k\nD1 b 0 dm\nD2 0 b dm\n.output o i(D2)\n",
+                 "t.wdn:7:13: error: diode 'D2' faces 'D1' and the two are solved as one antiparallel pair: probe i(D1), "
+                 "the pair's current");
+}
+
+/* An asymmetric clipper: the facing diodes' laws differ, so the two stay
+ * two, and the refusal says why they were not made a pair. */
+static void test_cli_facing_diodes(void **state) {
+    (void)state;
+    const char *p = write_tmp("asym.wdn", ".input in\nV1 a 0 in\n.model dm diode Is=2.52n\n.model dn diode Is=1n\n"
+                                          "R1 a b 1k\nD1 b 0 dm\nD2 0 b dn\n.output o v(b)\n");
+    char args[512], *out;
+    snprintf(args, sizeof args, "'%s' --check", p);
+    assert_int_equal(run_wdc(args, &out), 1);
+    assert_non_null(strstr(out, "(two facing diodes with one law are taken as one antiparallel pair, pair=1; these differ)"));
+    free(out);
+}
+
 /* ---- SPICE decks ---- */
 
 /* Loads text as the deck "t.cir": the circuit (NULL on an error) and
@@ -944,6 +973,7 @@ int main(void) {
         cmocka_unit_test(test_not_supported_yet),
         cmocka_unit_test(test_graph),
         cmocka_unit_test(test_dangling_resistors),
+        cmocka_unit_test(test_facing_diodes),
         cmocka_unit_test(test_deck),
         cmocka_unit_test(test_deck_sources),
         cmocka_unit_test(test_include_cycles),
@@ -954,6 +984,7 @@ int main(void) {
         cmocka_unit_test(test_models),
         cmocka_unit_test(test_include_block_file),
         cmocka_unit_test(test_cli_voltage_loop),
+        cmocka_unit_test(test_cli_facing_diodes),
         cmocka_unit_test(test_cli_exit_status),
     };
     return cmocka_run_group_tests(tests, make_tmpdir, remove_tmpdir);
