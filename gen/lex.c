@@ -53,8 +53,9 @@ static const struct { const char *s; double v; } suffixes[] = {
     {"m", 1e-3},  {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
 };
 
-/* Unit words that may follow a number and its suffix (ignored). */
-static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "Ohm", "N"};
+/* Unit words that may follow a number and its suffix (ignored), in any
+ * case (a SPICE deck is read folded: 10nF is 10nf). */
+static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "ohms", "N"};
 
 bool lex_number(const char *s, int len, double *out, const char **why) {
     char buf[64];
@@ -98,7 +99,7 @@ bool lex_number(const char *s, int len, double *out, const char **why) {
     if (*rest) {
         bool ok = false;
         for (size_t i = 0; i < sizeof units / sizeof units[0]; i++)
-            if (!strcmp(rest, units[i]))
+            if (!strcasecmp(rest, units[i]))
                 ok = true;
         if (!ok) {
             *why = format("unknown scale suffix or unit '%s'", rest);

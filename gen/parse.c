@@ -485,6 +485,13 @@ static void element(Parser *P, Line *l) {
 static Ref ref(Parser *P) {
     Token *t = P->tok;
     Ref r = {.pos = t->pos};
+    static const char *const ac[] = {"vdb", "vm", "vp", "vr", "vi", "idb", "im", "ip", "ir", "ii"};
+    for (int i = 0; P->file->spice && t->kind == TK_IDENT && t[1].kind == TK_LPAREN && i < 10; i++)
+        if (tok_is(t, ac[i])) { /* .print ac vdb(out): the signal is v(out) */
+            note_at(t->pos, "'%s(...)' measures the AC analysis; the voice outputs the signal, %c(...)", ac[i],
+                    ac[i][0]);
+            t->len = 1;
+        }
     if (t->kind != TK_IDENT || t->len != 1 || !strchr("vixfVIXF", t->text[0]) ||
         t[1].kind != TK_LPAREN)
         error_at(t->pos, "expected a probe v(node), v(a,b), i(elem), x(node) or f(elem)");

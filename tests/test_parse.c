@@ -654,6 +654,17 @@ static void test_deck(void **state) {
     assert_int_equal(c->nelems, 5);
     assert_string_equal(c->elems[3].name, "x2.r1");
     assert_true(c->elems[3].val && expr_eval(c->elems[3].val, NULL) == 2000);
+    /* units after the scale in any case (10nF, 12.88mH); an AC measure's
+     * signal as the output */
+    c = deck("* LC section\nVS 1 0 AC 1\nRS 1 2 50\nL1 2 3 12.88MH\nC1 3 0 10nF\nRL 3 0 50ohms\n"
+             ".print ac vdb(3)\n.end\n", &out);
+    if (!c)
+        fail_msg("deck rejected:\n%s", out);
+    assert_non_null(strstr(out, "t.cir:7:11: note: 'vdb(...)' measures the AC analysis; the voice outputs the signal, v(...)"));
+    free(out);
+    assert_true(fabs(expr_eval(elem_named(c, "l1")->val, NULL) - 12.88e-3) < 1e-15);
+    assert_true(fabs(expr_eval(elem_named(c, "c1")->val, NULL) - 10e-9) < 1e-20);
+    assert_string_equal(c->outs[0].name, "v_3");
     /* a .wdn keeps its case, takes no title and has no '$' comments */
     expect_error("V1 a 0 in $ drive\n", "t.wdn:1:11: error: too many nodes or values for voltage source 'V1': unexpected '$'");
     /* errors in a deck at their place */
