@@ -16,7 +16,7 @@ static Elem *lower(Lower *L, Line *l, const int *node) {
     NlSpec *nl = lower_nl(src, NL_DIODE);
     nl->Is = lower_key_or(L, src, "Is", 1e-14);
     nl->n = lower_key_or(L, src, "n", 1);
-    nl->Vt = lower_key_or(L, src, "Vt", 25.852e-3);
+    nl->Vt = lower_key_or(L, src, "Vt", lower_vt(L, l));
     KeyVal *pk = lower_key(src, "pair");
     if (pk) {
         double pv = lower_const(&pk->val, "pair=");

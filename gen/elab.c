@@ -65,6 +65,7 @@ typedef struct Elab {
     long nelements; /* element lines elaborated, blocks expanded */
     IcSpec **ic_at[2]; /* node -> its .ic v(node) [0] or x(node) [1], or NULL */
     bool have_voice, have_domain, have_rate;
+    double temp;    /* a deck's temperature (C): .temp, .options temp= */
     SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
 } Elab;
 
@@ -550,7 +551,21 @@ static void spice_model(Line *l) {
 static void dir_simple(Elab *E, Line *l) {
     Circuit *c = E->c;
     const char *d = l->head;
-    if (!strcmp(d, ".tran")) { /* a deck's step and length: the render's rate and length */
+    if (!strcmp(d, ".temp") || !strcmp(d, ".options")) { /* a deck's temperature sets its diodes' kT/q */
+        const Value *t = NULL;
+        for (int i = 0; i < l->nkv; i++)
+            if (!strcmp(l->kv[i].key, "temp"))
+                t = &l->kv[i].val;
+        if (!strcmp(d, ".temp"))
+            t = &l->args[0];
+        if (t) {
+            E->temp = lower_const(t, "the temperature");
+            if (!(E->temp > -273.15 && E->temp < 1000))
+                error_at(t->pos, "the temperature must be above -273.15 C and below 1000 C");
+        }
+        if (l->nkv > (t && strcmp(d, ".temp") ? 1 : 0) || (!t && !strcmp(d, ".options")))
+            note_at(l->headpos, "of '%s', the voice takes only the temperature (temp=); the rest is skipped", d);
+    } else if (!strcmp(d, ".tran")) { /* a deck's step and length: the render's rate and length */
         double step = lower_const(&l->args[0], "the step of .tran"), stop = lower_const(&l->args[1], "the stop time of .tran");
         if (!(step > 0) || !(1 / step <= 1e7))
             error_at(l->args[0].pos, ".tran's step gives a rate of %g Hz; it must be from 1 Hz to 10 MHz", 1 / step);
@@ -683,6 +698,15 @@ Expr *lower_need(Lower *L, Line *l, const char *k) {
     if (!kv)
         error_at(l->namepos, "%s '%s' needs %s=", block_desc[l->kind].desc, l->name, k);
     return lower_value(L, &kv->val, k);
+}
+
+/* The thermal voltage kT/q a diode takes when its model gives no Vt: at
+ * a deck's temperature (27 C unless .temp or .options temp= says), with
+ * SPICE's constants, or 25.852 mV in a .wdn. */
+double lower_vt(Lower *L, const Line *l) {
+    if (!l->pos.file->spice)
+        return 25.852e-3;
+    return 1.38064852e-23 * (L->E->temp + 273.15) / 1.6021766208e-19;
 }
 
 Expr *lower_key_or(Lower *L, Line *l, const char *k, double def) {
@@ -1454,7 +1478,7 @@ static void finish(Elab *E) {
 }
 
 static Circuit *elaborate(SrcFile *f) {
-    Elab E = {0};
+    Elab E = {.temp = 27};
     int lines = 1;
     for (const char *q = f->text; *q; q++)
         lines += *q == '\n' && q[1];

@@ -58,6 +58,7 @@ Expr *lower_value(Lower *L, const Value *v, const char *what);
 Expr *lower_need(Lower *L, Line *l, const char *k);
 /* The value of key k, or def where l does not give it. */
 Expr *lower_key_or(Lower *L, Line *l, const char *k, double def);
+double lower_vt(Lower *L, const Line *l);
 /* A value known at compile time: a number or an expression of numbers. */
 double lower_const(const Value *v, const char *what);
 /* Refuses x at pos unless its magnitude stays within what a voice can

@@ -626,9 +626,36 @@ static bool directive(Parser *P, Line *l) {
             error_at(P->tok->pos, ".tran needs a step and a stop time");
         if (P->tok->kind == TK_IDENT && tok_is(P->tok, "uic"))
             P->tok++;
+    } else if (P->file->spice && (!strcmp(d, ".options") || !strcmp(d, ".option"))) {
+        /* key=value settings and bare flags; elab takes temp= */
+        Vec kv = {0};
+        while (!at_eol(P)) {
+            if (!at_keyval(P)) {
+                P->tok++;
+                continue;
+            }
+            KeyVal *k = arena_alloc(sizeof(KeyVal));
+            k->key = tok_str(P->tok);
+            k->pos = P->tok->pos;
+            P->tok += 2;
+            if (at_eol(P))
+                error_at(P->tok[-1].pos, "expected a value after '='");
+            k->val = value(P);
+            vec_push(&kv, k);
+        }
+        l->head = ".options";
+        l->nkv = kv.len;
+        l->kv = arena_alloc(sizeof(KeyVal) * (size_t)(kv.len + 1));
+        for (int i = 0; i < kv.len; i++)
+            l->kv[i] = *(KeyVal *)kv.data[i];
+        set_args(l, &args);
+        return false;
+    } else if (P->file->spice && !strcmp(d, ".temp")) {
+        if (at_eol(P))
+            error_at(P->tok->pos, "missing the temperature (degrees C) after .temp");
+        add_arg(&args, value(P));
     } else if (P->file->spice && (!strcmp(d, ".ac") || !strcmp(d, ".dc") || !strcmp(d, ".op") ||
-                                  !strcmp(d, ".noise") || !strcmp(d, ".options") || !strcmp(d, ".option") ||
-                                  !strcmp(d, ".temp") || !strcmp(d, ".meas") || !strcmp(d, ".measure") ||
+                                  !strcmp(d, ".noise") || !strcmp(d, ".meas") || !strcmp(d, ".measure") ||
                                   !strcmp(d, ".four") || !strcmp(d, ".width") || !strcmp(d, ".nodeset") ||
                                   !strcmp(d, ".global") || !strcmp(d, ".title") || !strcmp(d, ".disto") ||
                                   !strcmp(d, ".sens") || !strcmp(d, ".tf") || !strcmp(d, ".pz"))) {

@@ -48,6 +48,9 @@
  *     order predicts 16) or 7 times (10 V; pre-asymptotic at 48 kHz, see
  *     above), and from 192 to 384 kHz at least 3.5 times (4 predicted).
  *
+ * The same deck ngspice ran, read by bin/wdc as a SPICE deck and rendered
+ * with the sine its source names, meets the same bounds (test_deck_vs_ngspice).
+ *
  * Run from the repository root: build/tests/test_diode_spice (after make).
  */
 #include <setjmp.h>
@@ -225,10 +228,64 @@ static void test_diode_clipper_vs_ngspice(void **st)
     }
 }
 
+/* The deck ngspice ran (tests/ref/diode_clipper_ngspice.sh), as written
+ * but for a .print naming its output: its title, .options with the
+ * temperature that makes kT/q 25.85 mV, the sine source, two facing
+ * diodes (taken as one pair), the model in SPICE's form and the .control
+ * block (skipped).  bin/wdc reads it as a deck and renders it with the
+ * sine its source names; the errors against ngspice are those of the
+ * netlist above, to the bounds above. */
+static void test_deck_vs_ngspice(void **st)
+{
+    const refdata *ref = ((const tl_fixture *)*st)->data;
+    char dir[64];
+    assert_int_equal(tl_temp_dir(dir, "wdc_deck"), 0);
+    for (int k = 0; k < NAMP; k++) {
+        char deck[2048], cmd[1024], path[256];
+        snprintf(deck, sizeof deck,
+                 "* diode clipper, netlists/diode_clipper.wdn, sine 440 Hz at %g V\n"
+                 ".options TEMP=26.826895261366076 TNOM=26.826895261366076 RELTOL=1e-6 VNTOL=1e-9 "
+                 "ABSTOL=1e-15 GMIN=1e-15\n"
+                 "V1 in1 0 SIN(0 %g 440)\nR1 in1 out 2.2k\nC1 out 0 10n\n"
+                 "D1 out 0 d1n4148\nD2 0 out d1n4148\n.model d1n4148 D(IS=2.52n N=1.752)\n"
+                 ".control\nset numdgt=16\ntran 2.0833333333333333e-05 10m 0 1e-8\nwrdata clip.dat v(out)\n.endc\n"
+                 ".print tran v(out)\n.end\n", amps[k], amps[k]);
+        tl_write_file(dir, "clip.cir", deck);
+        double e[2];
+        for (int r = 0; r < 2; r++) {
+            int over = r ? 4 : 1;
+            snprintf(cmd, sizeof cmd, "bin/wdc %s/clip.cir --render %s/o.wav --csv %s/o.csv --rate %g "
+                     "--seconds 0.01003 2>/dev/null", dir, dir, dir, FS_REF * over);
+            assert_int_equal(tl_system(cmd), 0);
+            snprintf(path, sizeof path, "%s/o.csv", dir);
+            FILE *f = fopen(path, "r");
+            assert_non_null(f);
+            static double y[NREF];
+            char line[256];
+            long n = 0;
+            while (fgets(line, sizeof line, f))
+                if (n % over == 0 && n / over < NREF)
+                    y[n++ / over] = atof(line);
+                else
+                    n++;
+            fclose(f);
+            assert_true(n >= (long)(NREF - 1) * over + 1);
+            e[r] = rel_rms_error(y, ref->v[k], NREF);
+            print_message("deck, A=%4.1f V, fs=%6.0f Hz: relative RMS error %.4g (%.1f dB)\n", amps[k],
+                          FS_REF * over, e[r], tl_db(e[r]));
+        }
+        assert_true(tl_db(e[0]) < bound48_db[k]);
+        assert_true(tl_db(e[1]) < bound192_db[k]);
+        assert_true(e[0] / e[1] >= min_ratio_48_192[k]);
+    }
+    tl_remove_dir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_diode_clipper_vs_ngspice),
+        cmocka_unit_test(test_deck_vs_ngspice),
     };
     return cmocka_run_group_tests(tests, setup, tl_fixture_teardown);
 }
