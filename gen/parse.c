@@ -693,6 +693,66 @@ SrcFile *srcfile_new(const char *path, const char *text) {
     return f;
 }
 
+/* A deck's .control ... .endc: ngspice's commands.  Of them the voice
+ * takes `tran STEP STOP` (as .tran) and the vectors that `print`, `plot`,
+ * `wrdata FILE` and `write FILE` name (as .print); the rest is skipped. */
+static void control(Parser *P, Vec *lines, SrcPos pos) {
+    Token *start = P->tok;
+    Token *t = P->tok;
+    while (t->kind != TK_EOF && !tok_is(t, ".endc"))
+        t++;
+    if (t->kind == TK_EOF)
+        error_at(pos, "'.control' without '.endc'");
+    note_at(start->pos, "'.control' starts ngspice's commands: of them the voice takes tran and the vectors "
+                        "print, plot, wrdata and write name, and skips the rest");
+    while (!at_eol(P))
+        P->tok++;
+    while (!tok_is(P->tok, ".endc")) {
+        if (P->tok->kind == TK_EOL) {
+            P->tok++;
+            continue;
+        }
+        Token *cmd = P->tok;
+        bool print = tok_is(cmd, "print") || tok_is(cmd, "plot"), file = tok_is(cmd, "wrdata") || tok_is(cmd, "write");
+        Line *l = arena_alloc(sizeof(Line));
+        l->pos = l->headpos = cmd->pos;
+        l->kind = -1;
+        P->tok++;
+        if (tok_is(cmd, "tran")) {
+            Vec args = {0};
+            while (!at_eol(P) && (P->tok->kind == TK_NUMBER || starts_numeric(P->tok)) && args.len < 2)
+                add_arg(&args, value(P));
+            if (args.len == 2) {
+                l->head = ".tran";
+                set_args(l, &args);
+                vec_push(lines, l);
+            }
+        } else if (print || file) {
+            Vec refs = {0};
+            if (file && !at_eol(P)) /* the file's name */
+                P->tok++;
+            while (!at_eol(P)) {
+                Token *w = P->tok;
+                if (w->kind == TK_IDENT && w[1].kind == TK_LPAREN &&
+                    (w->len == 1 ? strchr("vi", w->text[0]) != NULL : tok_is(w, "vdb") || tok_is(w, "vm") ||
+                                                                     tok_is(w, "vp") || tok_is(w, "vr") || tok_is(w, "vi")))
+                    push_ref(&refs, NULL, ref(P), NULL);
+                else
+                    P->tok++;
+            }
+            if (refs.len) {
+                l->head = ".print";
+                set_refs(l, &refs, NULL);
+                vec_push(lines, l);
+            }
+        }
+        while (!at_eol(P))
+            P->tok++;
+    }
+    while (!at_eol(P))
+        P->tok++;
+}
+
 /* netlist = line* EOF */
 Program *parse_file(SrcFile *f) {
     int ntok;
@@ -709,15 +769,8 @@ Program *parse_file(SrcFile *f) {
         l->head = tok_str(P.tok);
         l->kind = -1;
         bool end = false;
-        if (f->spice && tok_is(P.tok, ".control")) { /* ngspice's scripts, to .endc */
-            Token *start = P.tok;
-            while (P.tok->kind != TK_EOF && !tok_is(P.tok, ".endc"))
-                P.tok++;
-            if (P.tok->kind == TK_EOF)
-                error_at(l->pos, "'.control' without '.endc'");
-            note_at(start->pos, "'.control' starts ngspice's commands; they are skipped to '.endc'");
-            while (!at_eol(&P))
-                P.tok++;
+        if (f->spice && tok_is(P.tok, ".control")) { /* ngspice's commands, to .endc */
+            control(&P, &lines, l->pos);
             continue;
         }
         if (P.tok->kind == TK_IDENT && P.tok->text[0] == '.')

@@ -642,6 +642,15 @@ static void test_deck(void **state) {
     assert_true(strstr(out, "t.cir:9:35: note: diode model 'd1n914': rs= is not modelled and is ignored") != NULL);
     assert_true(strstr(out, "t.cir:12:1: note: '.ac' is an analysis or control line") != NULL);
     assert_true(strstr(out, "t.cir:13:1: note: '.control' starts ngspice's commands") != NULL);
+    free(out);
+    /* ngspice's own commands: tran, and the vectors plot and wrdata name */
+    c = deck("* all in .control\nV1 in 0 SIN(0 1 1k)\nR1 in out 1k\nC1 out 0 100n\n.control\nset numdgt=16\n"
+             "tran 10u 5m\nplot v(out) v(in) vs time\nwrdata /tmp/x.dat v(out) i(v1)\nrun\n.endc\n.end\n", &out);
+    if (!c)
+        fail_msg("deck rejected:\n%s", out);
+    assert_true(c->rate == 1e5 && c->tstop == 5e-3);
+    assert_int_equal(c->nouts, 3);
+    assert_string_equal(c->outs[2].name, "i_v1");
     assert_null(strstr(out, "error"));
     free(out);
     /* .subckt with params, X instances in any case */
