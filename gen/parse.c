@@ -469,7 +469,8 @@ static void element(Parser *P, Line *l) {
             error_at(P->tok->pos, "%s '%s' needs %s after its nodes", d->desc, l->name,
                      *a == 'm' ? "a model name" : *a == 'd' ? "a drive (input, param or value)" : "a value");
         }
-        add_arg(&args, value(P));
+        /* a model's name may start with a digit (1N4148) */
+        add_arg(&args, *a == 'm' && P->tok->kind == TK_IDENT ? node_value(P) : value(P));
     }
     set_args(l, &args);
     if (!at_eol(P) && !at_keyval(P)) {

@@ -1,7 +1,8 @@
 #!/bin/sh
 # demo.sh - compiles every example netlist and renders it to out/.
 #
-# For each netlists/*.wdn: `bin/wdc FILE -o out` emits out/NAME.c and
+# For each netlists/*.wdn (and each SPICE deck, netlists/*.cir, driven by
+# its own sources): `bin/wdc FILE -o out` emits out/NAME.c and
 # out/NAME.h, then `bin/wdc FILE --render out/NAME.wav --seconds 2` renders
 # two seconds, driven by an input that suits the netlist: a tap (an
 # impulse) for a mechanical system, white noise for a circuit (its
@@ -156,6 +157,19 @@ for f in netlists/*.wdn; do
     done
 done
 echo "demo: $n netlists compiled and rendered"
+
+# SPICE decks: netlists/*.cir, driven by the time functions of their own
+# sources, two seconds each.
+nd=0
+for f in netlists/*.cir; do
+    [ -e "$f" ] || continue
+    name=$(basename "$f" .cir)
+    "$WDC" "$f" -o "$OUT" 2>/dev/null || { echo "demo: FAILED: $WDC $f -o $OUT" >&2; exit 1; }
+    render "$f" "" "$OUT/$name.wav" --seconds "$SECONDS_" 2>/dev/null
+    echo "demo: $f -> $OUT/ (C) and $OUT/$name.wav (${SECONDS_} s, driven by its sources)"
+    nd=$((nd + 1))
+done
+echo "demo: $nd SPICE decks compiled and rendered"
 
 # Scenes: bin/wdrt renders each scenes/*.wds to out/NAME.wav, compiling the
 # netlists it names once (cached under out/cache).

@@ -156,6 +156,7 @@ static void seeds_glob(Seeds *s, const char *pattern) {
 static Seeds seeds_load(void) {
     Seeds s = {0};
     seeds_glob(&s, "netlists/*.wdn");
+    seeds_glob(&s, "netlists/*.cir");
     seeds_glob(&s, "blocks/*.wdn");
     const char *extra = getenv("WDC_FUZZ_SEEDS");
     if (extra && *extra)

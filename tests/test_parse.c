@@ -617,7 +617,7 @@ static void test_deck(void **state) {
                       "V1 IN 0 DC 0 AC 1 SIN(0 1 1k)\n"
                       "VCC Vcc 0 9 ; a rail\n"
                       "R1 in OUT {rval}\nC1 Out 0 'cval'\nRb vcc out 1MEG\n"
-                      ".MODEL D1N914 D(IS=2.52n, N=1.752 RS=.568)\nD1 out 0 d1n914\n"
+                      ".MODEL 1N914 D(IS=2.52n, N=1.752 RS=.568)\nD1 out 0 1n914\n"
                       ".tran 10u 50m\n.ac dec 10 10 100k\n.control\nrun\n.endc\n"
                       ".print TRAN V(out) v(in,out) I(r1)\n.END\n",
                       &out);
@@ -639,7 +639,7 @@ static void test_deck(void **state) {
     assert_int_equal(c->ninputs, 1);
     assert_non_null(c->input_fn[v1]);
     assert_int_equal(c->input_fn[v1]->kind, 's');
-    assert_true(strstr(out, "t.cir:9:35: note: diode model 'd1n914': rs= is not modelled and is ignored") != NULL);
+    assert_true(strstr(out, "t.cir:9:34: note: diode model '1n914': rs= is not modelled and is ignored") != NULL);
     assert_true(strstr(out, "t.cir:12:1: note: '.ac' is an analysis or control line") != NULL);
     assert_true(strstr(out, "t.cir:13:1: note: '.control' starts ngspice's commands") != NULL);
     free(out);
