@@ -474,7 +474,15 @@ static void emit_waveguides(Ctx *x) {
                      "            s_wf%d = t_y;\n            t_x = t_y;\n", w, w, j, j, j, j);
         /* the allpass lattice: its top stage in use gives the output, then
          * each stage m down to 1 passes on its rotation; the state of stage
-         * m holds the output of stage m - 1 a sample earlier */
+         * m holds the output of stage m - 1 a sample earlier.  A lattice of
+         * one stage (the fine tuning alone) keeps its state in locals. */
+        if (g->M == 1) {
+            emit(&o, "            t_y = k_wak%d * t_x + k_wac%d * s_wf%d;\n            t_x = k_wac%d * t_x - k_wak%d * s_wf%d;\n"
+                     "            s_wq%d = s_wf%d;\n            s_wf%d = t_x;\n            t_wb%d = t_y;\n        }\n",
+                 w, w, j, w, w, j, j, j, j, w);
+            put(x, NULL, "%s", str(&o));
+            goto ends;
+        }
         emit(&o, "            {\n                real *const t_s = st->s_wf + %d, *const t_q = st->s_wfp + %d;\n"
                  "                const real *const t_c = st->c_wf + %d;\n"
                  "                const unsigned t_J = %s;\n"
@@ -491,6 +499,7 @@ static void emit_waveguides(Ctx *x) {
         emit(&o, "                t_q[0] = t_s[0];\n                t_s[0] = t_x;\n            }\n"
                  "            t_wb%d = t_y;\n        }\n", w);
         put(x, NULL, "%s", str(&o));
+    ends:
         for (int e = 0; e < 2; e++) {
             if (g->end[e])
                 continue;
@@ -1255,6 +1264,18 @@ static void emit_hoist(Ctx *x) {
                   format("    st->s_wfp[%d] = s_wq%d;\n", f, f), format("        s_wq%d = flush(s_wq%d);\n", f, f));
         }
         local(x, format("k_wJ%d", w), format("    const unsigned k_wJ%d = st->c_wJ[%d];\n", w, w), NULL, NULL);
+        if (c->wgs[w].M == 1) { /* the one stage's state and rotation: locals */
+            int f = f0 + nl;
+            local(x, format("k_wak%d", w), format("    const real k_wak%d = st->c_wf[%d];\n", w, x->wc_off[w] + 3),
+                  NULL, NULL);
+            local(x, format("k_wac%d", w), format("    const real k_wac%d = st->c_wf[%d];\n", w, x->wc_off[w] + 4),
+                  NULL, NULL);
+            local(x, format("s_wf%d", f), format("    real s_wf%d = st->s_wf[%d];\n", f, f),
+                  format("    st->s_wf[%d] = s_wf%d;\n", f, f), format("        s_wf%d = flush(s_wf%d);\n", f, f));
+            local(x, format("s_wq%d", f), format("    real s_wq%d = st->s_wfp[%d];\n", f, f),
+                  format("    st->s_wfp[%d] = s_wq%d;\n", f, f), format("        s_wq%d = flush(s_wq%d);\n", f, f));
+            continue;
+        }
         local(x, NULL, NULL, NULL,
               format("        for (int m = %d; m < %d; m++) {\n            st->s_wf[m] = flush(st->s_wf[m]);\n"
                      "            st->s_wfp[m] = flush(st->s_wfp[m]);\n        }\n", f0 + nl, f0 + nl + c->wgs[w].M));
