@@ -1000,8 +1000,12 @@ static void emit_backward(Ctx *x) {
                          j == nopen - 1 ? ")" : "");
                 if (cond.len)
                     emit(&o, "        if (%s)\n    ", str(&cond));
-                emit(&o, "        s_wv[%d + (%s & %du)] = flush(%s); /* %s */\n",
-                     x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, a, e->name);
+                /* what a tap writes reaches an end within a pass of the line,
+                 * where it is flushed: tiny waves do not circulate */
+                bool end = e->pt == 0 || e->pt == g->ntaps + 1;
+                emit(&o, "        s_wv[%d + (%s & %du)] = %s%s%s; /* %s */\n",
+                     x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, end ? "flush(" : "", a, end ? ")" : "",
+                     e->name);
                 put(x, NULL, "%s", str(&o));
             }
             continue;
