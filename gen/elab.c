@@ -571,6 +571,7 @@ static void dir_simple(Elab *E, Line *l) {
             error_at(l->args[0].pos, ".tran's step gives a rate of %g Hz; it must be from 1 Hz to 10 MHz", 1 / step);
         if (!(stop > 0) || !(stop <= 86400))
             error_at(l->args[1].pos, ".tran's stop time must be above 0 and at most a day");
+        c->uic = l->nargs > 2 && l->args[2].kind == VAL_NAME && !strcmp(l->args[2].name, "uic");
         if (!E->have_rate) /* 10u is 100 kHz, not 99999.99999999999 */
             c->rate = fabs(1 / step - round(1 / step)) <= 1e-9 / step ? round(1 / step) : 1 / step;
         c->tstop = stop;
@@ -1485,6 +1486,7 @@ static Circuit *elaborate(SrcFile *f) {
     E.endpos = (SrcPos){f, lines, 1};
     Circuit *c = E.c = arena_alloc(sizeof(Circuit));
     c->path = f->path;
+    c->deck = f->spice;
     c->rate = 48000;
     c->hash = 2166136261u;
     for (const char *p = f->text; *p; p++)

@@ -210,6 +210,7 @@ typedef struct Ctx {
     int own;         /* the root the statements being put compute, -1: none */
     char phase;      /* their phase (Stmt.phase) */
     Buf wfix;        /* after idle samples: the waves that last arrived at idle taps */
+    const char *dcop; /* a deck's DC operating point (dcop_static), or NULL */
 } Ctx;
 
 /* A statement of the sample loop defining `def` (NULL: a store). */
@@ -1425,11 +1426,16 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
     const Circuit *c = x->c;
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
+        if (x->src[i] >= 0 && e->input < 0 && keeps_drive(x))
+            emit(o, "    st->s_e[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
+    }
+    if (x->dcop)
+        emit(o, "    dcop(st, react);\n");
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
         WNode *n = x->w->leaf_of[i];
         if (e->ic && n && x->settle)
             emit(o, "    react[%d] = %s; /* %s */\n", x->react[n->id], cexpr(x, e->ic), e->name);
-        if (x->src[i] >= 0 && e->input < 0 && keeps_drive(x))
-            emit(o, "    st->s_e[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
@@ -1460,7 +1466,7 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
     if (c->nwgs)
         emit(o, "    memset(st->s_wv, 0, sizeof st->s_wv);\n    memset(st->s_wf, 0, sizeof st->s_wf);\n"
                 "    memset(st->s_wfp, 0, sizeof st->s_wfp);\n    memset(st->s_wpre, 0, sizeof st->s_wpre);\n");
-    if (x->settle && !rests_at_zero(x))
+    if (x->settle && (!rests_at_zero(x) || x->dcop))
         emit(o, "    settle(st, %s);\n", x->nreact ? "react" : "NULL");
 }
 
@@ -1871,6 +1877,78 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
                   " * sample are set from it. */\n"
                   "static int settle(state *st, const double *react%s) {\n%s    return 0;\n}\n",
                   uses(body, "react") ? "" : " UNUSED", body);
+}
+
+/* A SPICE deck starts from its DC operating point, as SPICE's transient
+ * does: capacitors open, inductors shorted, sources at their drives (an
+ * input's at 0), and, where a node is held only by capacitors or current
+ * sources, SPICE's GMIN (1e-12 S) from every node to ground.  Sets x->dcop
+ * to dcop(), which writes each reactance's value (a capacitor's voltage,
+ * an inductor's current) for settle; false where it does not apply: not a
+ * deck, .tran ... UIC, nonlinear elements, lines or waveguides (whose
+ * operating point this linear solve cannot give), or a network singular
+ * even with GMIN. */
+static bool dcop_try(Ctx *x, bool gmin) {
+    const Circuit *c = x->c;
+    if (!c->deck || c->uic || !x->settle || !x->nreact || x->nnl || c->nwgs || x->nline)
+        return false;
+    Sx *sx = sx_new("u");
+    Lin *L = lin_new(sx, c->nnodes - 1);
+    int *ea = arena_alloc(sizeof(int) * (size_t)c->nelems);
+    Sym *val = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + c->nnodes + 1));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        const WNode *n = x->w->leaf_of[i];
+        int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1, k = -1;
+        Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
+        Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
+        Sym v = sym_k(0);
+        switch (kind) {
+        case IC_RES: if (n) k = lin_g(L, p, q, g); break;
+        case IC_CAP: break; /* open */
+        case IC_IND: k = lin_v(L, p, q); break; /* shorted */
+        case IC_V: k = lin_v(L, p, q), v = drive; break;
+        case IC_I: k = lin_j(L, p, q), v = drive; break;
+        case IC_RV: k = lin_g(L, p, q, g), v = drive; break;
+        case IC_RI:
+            k = lin_g(L, p, q, g);
+            val[k] = sym_k(0);
+            k = lin_j(L, p, q), v = drive;
+            break;
+        default: return false;
+        }
+        ea[i] = k;
+        if (k >= 0)
+            val[k] = v;
+    }
+    for (int nd = 0; gmin && nd + 1 < c->nnodes; nd++)
+        val[lin_g(L, nd, -1, sym_k(1e-12))] = sym_k(0);
+    if (!lin_factor(L))
+        return false;
+    Sym *pot = arena_alloc(sizeof(Sym) * (size_t)c->nnodes), *cur = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + c->nnodes + 1));
+    lin_solve(L, val, pot, cur);
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        const WNode *n = x->w->leaf_of[i];
+        int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1;
+        if (kind == IC_CAP)
+            sx_stmt(sx, format("    react[%d] = %s;\n", x->react[n->id],
+                               sx_use(sx, sx_sub(sx, p >= 0 ? pot[p] : sym_k(0), q >= 0 ? pot[q] : sym_k(0)))));
+        else if (kind == IC_IND)
+            sx_stmt(sx, format("    react[%d] = %s;\n", x->react[n->id], sx_use(sx, cur[ea[i]])));
+    }
+    Buf o = {0};
+    sx_code(sx, &o);
+    x->dcop = format("/* The deck's DC operating point, as SPICE's transient starts from it:\n"
+                     " * capacitors open, inductors shorted, the sources at their drives (an\n"
+                     " * input's at 0)%s; each reactance's value into react for settle. */\n"
+                     "static void dcop(const state *st, double *react) {\n%s}\n",
+                     gmin ? ", GMIN 1e-12 S from every node to ground" : "", str(&o));
+    return true;
+}
+
+static const char *dcop_static(Ctx *x) {
+    return dcop_try(x, false) || dcop_try(x, true) ? x->dcop : NULL;
 }
 
 static const char *ic_table(Ctx *x, int *nv) {
@@ -2497,6 +2575,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     index_tree(&x);
     find_idle(&x);
     x.settle = x.nreact || x.nnl || x_probes(c) || (x.energy && x.nsrc);
+    x.dcop = dcop_static(&x);
     Buf update = {0}, reset = {0}, probes = {0}, energy = {0}, kirch = {0}, targets = {0}, cases = {0};
     emit_sample(&x);
     emit_hoist(&x);
@@ -2583,7 +2662,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
             emit(&solve, "\n%s", fill_with(x.rfn[b], &t));
     }
     set(&t, "solve", format("%s%s", general ? fill_with(tmpl_root, &t) : "", str(&solve)));
-    set(&t, "settle", fast ? fast : x.settle ? fill_with(tmpl_settle, &t) : "");
+    set(&t, "settle", format("%s%s", x.dcop ? x.dcop : "", fast ? fast : x.settle ? fill_with(tmpl_settle, &t) : ""));
     /* the helpers the rest of the voice names */
     set(&t, "wg_kernels", "");
     set(&t, "helpers", "");

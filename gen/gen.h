@@ -446,6 +446,8 @@ typedef struct Circuit {
     Domain domain;
     double rate;          /* default sample rate, Hz */
     double tstop;         /* a deck's .tran stop time: a render's length (s), 0: none */
+    bool deck;            /* read as a SPICE deck: starts from its DC operating point */
+    bool uic;             /* the deck's .tran says UIC: it starts from rest and its .ic */
     int nnodes;           /* node 0 is ground */
     const char **nodes;
     Elem *elems;

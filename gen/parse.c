@@ -626,7 +626,7 @@ static bool directive(Parser *P, Line *l) {
         if (args.len < 2)
             error_at(P->tok->pos, ".tran needs a step and a stop time");
         if (P->tok->kind == TK_IDENT && tok_is(P->tok, "uic"))
-            P->tok++;
+            add_arg(&args, node_value(P));
     } else if (P->file->spice && (!strcmp(d, ".options") || !strcmp(d, ".option"))) {
         /* key=value settings and bare flags; elab takes temp= */
         Vec kv = {0};

@@ -560,6 +560,52 @@ static void test_facing_diodes(void **state) {
                  "the pair's current");
 }
 
+/* The first row of a render's CSV. */
+static void first_row(const char *path, double *v, int n) {
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    char line[512];
+    assert_non_null(fgets(line, sizeof line, f));
+    fclose(f);
+    char *p = line;
+    for (int k = 0; k < n; k++) {
+        v[k] = strtod(p, &p);
+        if (*p == ',')
+            p++;
+    }
+}
+
+/* A deck starts from its DC operating point, as SPICE's transient does:
+ * a biased divider with a coupling capacitor and an inductor to ground
+ * renders its operating point from the first sample on (no thump); with
+ * .tran ... UIC it starts from rest instead. */
+static void test_cli_deck_op(void **state) {
+    (void)state;
+    const char *deck = "Biased divider with a coupling cap\nVCC vcc 0 9\nR1 vcc b 100k\nR2 b 0 10k\nC1 b out 1u\n"
+                       "R3 out 0 100k\nL1 vcc c 10m\nR4 c 0 1k\n.tran 20.8333333333u 0.05%s\n"
+                       ".print tran v(b) v(out) i(l1)\n.end\n";
+    for (int uic = 0; uic < 2; uic++) {
+        char text[1024], args[1024], csv[300], *out;
+        snprintf(text, sizeof text, deck, uic ? " uic" : "");
+        const char *p = write_tmp("bias.cir", text);
+        snprintf(csv, sizeof csv, "%s.csv", p);
+        snprintf(args, sizeof args, "'%s' --render '%s.wav' --csv '%s'", p, p, csv);
+        assert_int_equal(run_wdc(args, &out), 0);
+        free(out);
+        double v[3];
+        first_row(csv, v, 3);
+        printf("%s: first sample v(b) %.17g V, v(out) %.3g V, i(L1) %.17g A\n", uic ? "uic" : "operating point", v[0],
+               v[1], v[2]);
+        if (uic) {
+            assert_true(fabs(v[0] - 9.0 / 11) > 0.01);
+        } else {
+            assert_true(fabs(v[0] - 9.0 / 11) < 1e-14);
+            assert_true(fabs(v[1]) < 1e-15);
+            assert_true(fabs(v[2] - 9e-3) < 1e-16);
+        }
+    }
+}
+
 /* An asymmetric clipper: the facing diodes' laws differ, so the two stay
  * two, and the refusal says why they were not made a pair. */
 static void test_cli_facing_diodes(void **state) {
@@ -1005,6 +1051,7 @@ int main(void) {
         cmocka_unit_test(test_include_block_file),
         cmocka_unit_test(test_cli_voltage_loop),
         cmocka_unit_test(test_cli_facing_diodes),
+        cmocka_unit_test(test_cli_deck_op),
         cmocka_unit_test(test_cli_exit_status),
     };
     return cmocka_run_group_tests(tests, make_tmpdir, remove_tmpdir);
