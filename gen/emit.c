@@ -1764,6 +1764,34 @@ static int nl_index(Ctx *x, const Elem *e) {
  * as the compiler eliminated it, or NULL if it needs the general solve.
  * `force`: whether nl_force exists; `probes`: what settle sets from the
  * node values x[]. */
+/* Element i of the Kirchhoff solves (settle, dcop) when it is a resistor
+ * or a source: its edge in L, its value into *v (a resistor's emf, a
+ * source's last drive); -2 for the reactances and the rest, which each
+ * solve stamps its own way. */
+static int stamp_source(Ctx *x, Sx *sx, Lin *L, int i, Sym *val, Sym *v) {
+    const Elem *e = &x->c->elems[i];
+    const WNode *n = x->w->leaf_of[i];
+    int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1, k;
+    Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
+    Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
+    *v = sym_k(0);
+    switch (kind) {
+    case IC_RES: return n ? lin_g(L, p, q, g) : -1;
+    case IC_V: *v = drive; return lin_v(L, p, q);
+    case IC_I: *v = drive; return lin_j(L, p, q);
+    case IC_RV: *v = drive; return lin_g(L, p, q, g);
+    case IC_RI:
+        k = lin_g(L, p, q, g);
+        val[k] = sym_k(0);
+        *v = drive;
+        return lin_j(L, p, q);
+    case IC_WAVE: /* a waveguide's port: its resistance and the wave that last arrived */
+        *v = sym_ext(dbl(x, format("st->s_wpre[%d]", x->sp_of[i])));
+        return lin_g(L, p, q, g);
+    default: return -2;
+    }
+}
+
 static const char *settle_static(Ctx *x, bool force, const char *probes) {
     const Circuit *c = x->c;
     Sx *sx = sx_new("u");
@@ -1805,27 +1833,14 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
             ea[i] = -1;
             continue;
         }
-        Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
-        Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
-        Sym v = sym_k(0);
-        switch (kind) {
-        case IC_RES: if (n) k = lin_g(L, p, q, g); break;
-        case IC_CAP: k = lin_v(L, p, q), v = sym_ext(format("react[%d]", x->react[n->id])); break;
-        case IC_IND: k = lin_j(L, p, q), v = sym_ext(format("react[%d]", x->react[n->id])); break;
-        case IC_V: k = lin_v(L, p, q), v = drive; break;
-        case IC_I: k = lin_j(L, p, q), v = drive; break;
-        case IC_RV: k = lin_g(L, p, q, g), v = drive; break;
-        case IC_RI:
-            k = lin_g(L, p, q, g);
-            val[k] = sym_k(0);
-            k = lin_j(L, p, q), v = drive;
-            break;
-        case IC_FORCE:
-            k = lin_j(L, p, q);
-            v = force ? sx_temp(sx, format("nl_force(st, %d)", nl_index(x, e))) : sym_k(0);
-            break;
-        case IC_WAVE: k = lin_g(L, p, q, g), v = sym_ext(dbl(x, format("st->s_wpre[%d]", x->sp_of[i]))); break;
-        }
+        Sym v;
+        k = stamp_source(x, sx, L, i, val, &v);
+        if (kind == IC_CAP)
+            k = lin_v(L, p, q), v = sym_ext(format("react[%d]", x->react[n->id]));
+        else if (kind == IC_IND)
+            k = lin_j(L, p, q), v = sym_ext(format("react[%d]", x->react[n->id]));
+        else if (kind == IC_FORCE)
+            k = lin_j(L, p, q), v = force ? sx_temp(sx, format("nl_force(st, %d)", nl_index(x, e))) : sym_k(0);
         ea[i] = k;
         if (k >= 0)
             val[k] = v;
@@ -1898,25 +1913,15 @@ static bool dcop_try(Ctx *x, bool gmin) {
     Sym *val = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + c->nnodes + 1));
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
-        const WNode *n = x->w->leaf_of[i];
-        int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1, k = -1;
-        Sym drive = keeps_drive(x) && x->src[i] >= 0 ? sym_ext(dbl(x, format("st->s_e[%d]", x->src[i]))) : sym_k(0);
-        Sym g = n ? sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", n->id)))) : sym_k(0);
-        Sym v = sym_k(0);
-        switch (kind) {
-        case IC_RES: if (n) k = lin_g(L, p, q, g); break;
-        case IC_CAP: break; /* open */
-        case IC_IND: k = lin_v(L, p, q); break; /* shorted */
-        case IC_V: k = lin_v(L, p, q), v = drive; break;
-        case IC_I: k = lin_j(L, p, q), v = drive; break;
-        case IC_RV: k = lin_g(L, p, q, g), v = drive; break;
-        case IC_RI:
-            k = lin_g(L, p, q, g);
-            val[k] = sym_k(0);
-            k = lin_j(L, p, q), v = drive;
-            break;
-        default: return false;
-        }
+        int kind = prim_ic(e), p = e->n[0] - 1, q = e->n[1] - 1, k;
+        Sym v;
+        k = stamp_source(x, sx, L, i, val, &v);
+        if (kind == IC_CAP)
+            k = -1; /* open */
+        else if (kind == IC_IND)
+            k = lin_v(L, p, q), v = sym_k(0); /* shorted */
+        else if (k == -2 || kind == IC_WAVE)
+            return false;
         ea[i] = k;
         if (k >= 0)
             val[k] = v;
