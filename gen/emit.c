@@ -1428,6 +1428,11 @@ static void emit_reset(Ctx *x, Buf *o, Buf *probes) {
         const Elem *e = &c->elems[i];
         if (x->src[i] >= 0 && e->input < 0 && keeps_drive(x))
             emit(o, "    st->s_e[%d] = st->c_e[%d];\n", x->src[i], x->src[i]);
+        /* a deck's source driven by its input starts at its time function's
+         * first value, which a render without --input plays from there */
+        if (x->src[i] >= 0 && e->input >= 0 && keeps_drive(x) && x->dcop && c->input_fn[e->input] &&
+            srcfn_at(c->input_fn[e->input], 0, 1 / c->rate) != 0)
+            emit(o, "    st->s_e[%d] = %s;\n", x->src[i], lit(x, srcfn_at(c->input_fn[e->input], 0, 1 / c->rate)));
     }
     if (x->dcop)
         emit(o, "    dcop(st, react);\n");

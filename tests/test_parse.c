@@ -604,6 +604,18 @@ static void test_cli_deck_op(void **state) {
             assert_true(fabs(v[2] - 9e-3) < 1e-16);
         }
     }
+    /* a source with AC is the voice's input; its DC value is where the
+     * operating point and the render's drive start */
+    const char *p = write_tmp("bin.cir", "Biased input\nV1 in 0 DC 5 AC 1\nR1 in b 10k\nC1 b 0 1u\nR2 b 0 10k\n"
+                                         ".tran 20.8333333333u 0.01\n.print tran v(b) v(in)\n.end\n");
+    char args[1024], csv[300], *out;
+    snprintf(csv, sizeof csv, "%s.csv", p);
+    snprintf(args, sizeof args, "'%s' --render '%s.wav' --csv '%s'", p, p, csv);
+    assert_int_equal(run_wdc(args, &out), 0);
+    free(out);
+    double v[2];
+    first_row(csv, v, 2);
+    assert_true(v[0] == 2.5 && v[1] == 5);
 }
 
 /* An asymmetric clipper: the facing diodes' laws differ, so the two stay
