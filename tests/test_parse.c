@@ -560,8 +560,15 @@ static void test_facing_diodes(void **state) {
                  "the pair's current");
 }
 
-/* The first row of a render's CSV. */
-static void first_row(const char *path, double *v, int n) {
+/* Renders deck `text` (written as `name`) with bin/wdc and reads the
+ * first row of its CSV into v[0..n). */
+static void render_first_row(const char *name, const char *text, double *v, int n) {
+    const char *p = write_tmp(name, text);
+    char args[1024], path[300], *out;
+    snprintf(path, sizeof path, "%s.csv", p);
+    snprintf(args, sizeof args, "'%s' --render '%s.wav' --csv '%s'", p, p, path);
+    assert_int_equal(run_wdc(args, &out), 0);
+    free(out);
     FILE *f = fopen(path, "r");
     assert_non_null(f);
     char line[512];
@@ -585,15 +592,10 @@ static void test_cli_deck_op(void **state) {
                        "R3 out 0 100k\nL1 vcc c 10m\nR4 c 0 1k\n.tran 20.8333333333u 0.05%s\n"
                        ".print tran v(b) v(out) i(l1)\n.end\n";
     for (int uic = 0; uic < 2; uic++) {
-        char text[1024], args[1024], csv[300], *out;
+        char text[1024];
         snprintf(text, sizeof text, deck, uic ? " uic" : "");
-        const char *p = write_tmp("bias.cir", text);
-        snprintf(csv, sizeof csv, "%s.csv", p);
-        snprintf(args, sizeof args, "'%s' --render '%s.wav' --csv '%s'", p, p, csv);
-        assert_int_equal(run_wdc(args, &out), 0);
-        free(out);
         double v[3];
-        first_row(csv, v, 3);
+        render_first_row("bias.cir", text, v, 3);
         printf("%s: first sample v(b) %.17g V, v(out) %.3g V, i(L1) %.17g A\n", uic ? "uic" : "operating point", v[0],
                v[1], v[2]);
         if (uic) {
@@ -606,15 +608,9 @@ static void test_cli_deck_op(void **state) {
     }
     /* a source with AC is the voice's input; its DC value is where the
      * operating point and the render's drive start */
-    const char *p = write_tmp("bin.cir", "Biased input\nV1 in 0 DC 5 AC 1\nR1 in b 10k\nC1 b 0 1u\nR2 b 0 10k\n"
-                                         ".tran 20.8333333333u 0.01\n.print tran v(b) v(in)\n.end\n");
-    char args[1024], csv[300], *out;
-    snprintf(csv, sizeof csv, "%s.csv", p);
-    snprintf(args, sizeof args, "'%s' --render '%s.wav' --csv '%s'", p, p, csv);
-    assert_int_equal(run_wdc(args, &out), 0);
-    free(out);
     double v[2];
-    first_row(csv, v, 2);
+    render_first_row("bin.cir", "Biased input\nV1 in 0 DC 5 AC 1\nR1 in b 10k\nC1 b 0 1u\nR2 b 0 10k\n"
+                                ".tran 20.8333333333u 0.01\n.print tran v(b) v(in)\n.end\n", v, 2);
     assert_true(v[0] == 2.5 && v[1] == 5);
 }
 
