@@ -574,11 +574,11 @@ static void render_first_row(const char *name, const char *text, double *v, int 
     char line[512];
     assert_non_null(fgets(line, sizeof line, f));
     fclose(f);
-    char *p = line;
+    char *c = line;
     for (int k = 0; k < n; k++) {
-        v[k] = strtod(p, &p);
-        if (*p == ',')
-            p++;
+        v[k] = strtod(c, &c);
+        if (*c == ',')
+            c++;
     }
 }
 
