@@ -155,6 +155,8 @@ Token *lex_file(SrcFile *f, int *ntok);
 /* Parses a SPICE number with scale suffix; returns false if malformed and
  * sets *why. */
 bool lex_number(const char *s, int len, double *out, const char **why);
+/* The same in a SPICE deck (deck): its units in any case. */
+bool lex_number_in(const char *s, int len, double *out, const char **why, bool deck);
 bool tok_is(const Token *t, const char *s);
 
 /* parse.c: expressions */

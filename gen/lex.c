@@ -53,11 +53,13 @@ static const struct { const char *s; double v; } suffixes[] = {
     {"m", 1e-3},  {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
 };
 
-/* Unit words that may follow a number and its suffix (ignored), in any
- * case (a SPICE deck is read folded: 10nF is 10nf). */
-static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "ohms", "N"};
+/* Unit words that may follow a number and its suffix (ignored), as
+ * written; in a SPICE deck in any case (it is read folded: 10nF is 10nf). */
+static const char *units[] = {"F", "H", "V", "A", "s", "Hz", "ohm", "Ohm", "N"};
 
-bool lex_number(const char *s, int len, double *out, const char **why) {
+bool lex_number(const char *s, int len, double *out, const char **why) { return lex_number_in(s, len, out, why, false); }
+
+bool lex_number_in(const char *s, int len, double *out, const char **why, bool deck) {
     char buf[64];
     if (len <= 0 || len >= (int)sizeof buf) {
         *why = "number too long";
@@ -99,8 +101,9 @@ bool lex_number(const char *s, int len, double *out, const char **why) {
     if (*rest) {
         bool ok = false;
         for (size_t i = 0; i < sizeof units / sizeof units[0]; i++)
-            if (!strcasecmp(rest, units[i]))
+            if (deck ? !strcasecmp(rest, units[i]) : !strcmp(rest, units[i]))
                 ok = true;
+        ok = ok || (deck && !strcmp(rest, "ohms"));
         if (!ok) {
             *why = format("unknown scale suffix or unit '%s'", rest);
             return false;
@@ -162,7 +165,7 @@ static void lex_word(Lexer *L) {
     Token *t = push(L, TK_IDENT, s, (int)(q - s));
     const char *why;
     double v;
-    if (lex_number(s, (int)(q - s), &v, &why)) {
+    if (lex_number_in(s, (int)(q - s), &v, &why, L->file->spice)) {
         t->kind = TK_NUMBER;
         t->num = v;
     }

@@ -77,7 +77,7 @@ static void enext(ELex *E) {
         E->p = q;
         if (numeric) {
             const char *why;
-            if (!lex_number(E->text, E->len, &E->num, &why))
+            if (!lex_number_in(E->text, E->len, &E->num, &why, E->base.file && E->base.file->spice))
                 error_at(E->pos, "malformed number '%.*s': %s", E->len, E->text, why);
             E->kind = 'n';
         } else {
@@ -280,7 +280,7 @@ static Value number_value(const Token *t) {
     if (t->kind != TK_NUMBER) {
         const char *why = "not a number";
         double v;
-        lex_number(t->text, t->len, &v, &why);
+        lex_number_in(t->text, t->len, &v, &why, t->pos.file && t->pos.file->spice);
         error_at(t->pos, "malformed number '%.*s': %s", t->len, t->text, why);
     }
     return (Value){.kind = VAL_EXPR, .pos = t->pos, .expr = expr_num(t->num, t->pos)};
