@@ -614,6 +614,24 @@ static void test_cli_deck_op(void **state) {
     assert_true(v[0] == 2.5 && v[1] == 5);
 }
 
+/* --spice reads any file as a deck, and a deck's .include is read as a
+ * deck too (no title line of its own, case folded). */
+static void test_cli_spice_flag(void **state) {
+    (void)state;
+    write_tmp("parts.inc", "* parts\nR2 OUT 0 10K\n.MODEL DX D(IS=1N)\n");
+    const char *p = write_tmp("deck.txt", "A deck named .txt\n.include parts.inc\nV1 IN 0 DC 1\nR1 in out 10k\n"
+                                          "C1 out 0 1u\n.print tran v(out)\n.end\n");
+    char args[1024], *out;
+    snprintf(args, sizeof args, "'%s' --check", p);
+    assert_int_equal(run_wdc(args, &out), 1); /* read as a .wdn: the title is a line */
+    free(out);
+    snprintf(args, sizeof args, "'%s' --spice -delab", p);
+    assert_int_equal(run_wdc(args, &out), 0);
+    assert_non_null(strstr(out, "R r2 out 0 10000"));
+    assert_non_null(strstr(out, "R r1 in out 10000"));
+    free(out);
+}
+
 /* An asymmetric clipper: the facing diodes' laws differ, so the two stay
  * two, and the refusal says why they were not made a pair. */
 static void test_cli_facing_diodes(void **state) {
@@ -1060,6 +1078,7 @@ int main(void) {
         cmocka_unit_test(test_cli_voltage_loop),
         cmocka_unit_test(test_cli_facing_diodes),
         cmocka_unit_test(test_cli_deck_op),
+        cmocka_unit_test(test_cli_spice_flag),
         cmocka_unit_test(test_cli_exit_status),
     };
     return cmocka_run_group_tests(tests, make_tmpdir, remove_tmpdir);
