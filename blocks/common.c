@@ -60,6 +60,12 @@ NlSpec *lower_nl(Line *l, NlKind k) {
     return nl;
 }
 
+void lower_only_solver(NlSpec *nl, Solver s, const char *why) {
+    if (nl->solver != SOLVER_DEFAULT && nl->solver != s)
+        error_at(nl->solver_pos, "%s", why);
+    nl->solver = s;
+}
+
 /* curve=(v0:i0 v1:i1 ...): points of a monotone, passive v-i curve */
 void lower_curve(Line *l, NlSpec *nl) {
     KeyVal *k = lower_key(l, "curve");

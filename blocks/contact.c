@@ -16,9 +16,7 @@ static Elem *lower(Lower *L, Line *l, const int *node) {
     nl->alpha = lower_key_or(L, l, "alpha", 1);
     nl->lambda = lower_key_or(L, l, "lambda", 0);
     nl->gap = lower_key_or(L, l, "gap", 0);
-    if (nl->solver != SOLVER_DEFAULT && nl->solver != SOLVER_NEWTON)
-        error_at(nl->solver_pos, "a contact has memory (its compression): only solver=newton applies");
-    nl->solver = SOLVER_NEWTON;
+    lower_only_solver(nl, SOLVER_NEWTON, "a contact has memory (its compression): only solver=newton applies");
     e->nl = nl;
     return e;
 }

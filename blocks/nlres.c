@@ -10,10 +10,8 @@ static Elem *lower(Lower *L, Line *l, const int *node) {
     Elem *e = lower_elem(L, l, E_NL, "", node[0], node[1]);
     NlSpec *nl = lower_nl(l, NL_CURVE);
     lower_curve(l, nl);
-    if (nl->solver != SOLVER_DEFAULT && nl->solver != SOLVER_PWL)
-        error_at(nl->solver_pos, "a curve given by points is solved exactly by its piecewise-linear wave map: "
-                 "use solver=pwl");
-    nl->solver = SOLVER_PWL;
+    lower_only_solver(nl, SOLVER_PWL, "a curve given by points is solved exactly by its piecewise-linear wave "
+                                      "map: use solver=pwl");
     e->nl = nl;
     return e;
 }

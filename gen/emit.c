@@ -1137,20 +1137,31 @@ static void emit_work(Ctx *x) {
 /* The sample loop's statements that an output or a state needs: from the
  * last back, a definition stays if a statement kept after it names it.
  * Returns their text; *live then holds every name it uses. */
-static const char *sample_text(Ctx *x, Names *live) {
-    bool *keep = arena_alloc(sizeof(bool) * (size_t)(x->nstmt + 1));
-    for (int i = x->nstmt - 1; i >= 0; i--) {
-        const Stmt *s = &x->stmt[i];
-        if (s->def && !names_has(live, s->def))
+static const char *live_text(const Stmt *l, int n, Names *live) {
+    bool *keep = arena_alloc(sizeof(bool) * (size_t)(n + 1));
+    for (int i = n - 1; i >= 0; i--) {
+        if (l[i].def && !names_has(live, l[i].def))
             continue;
         keep[i] = true;
-        names_scan(live, s->text);
+        names_scan(live, l[i].text);
     }
     Buf b = {0};
-    for (int i = 0; i < x->nstmt; i++)
+    for (int i = 0; i < n; i++)
         if (keep[i])
-            emit(&b, "%s", x->stmt[i].text);
+            emit(&b, "%s", l[i].text);
     return str(&b);
+}
+
+static const char *sample_text(Ctx *x, Names *live) { return live_text(x->stmt, x->nstmt, live); }
+
+/* Each line of text one level (four spaces) deeper, into b. */
+static void indented(Buf *b, const char *text) {
+    for (const char *p = text; *p;) {
+        const char *e = strchr(p, '\n');
+        size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
+        emit(b, "    %.*s", (int)n, p);
+        p += n;
+    }
 }
 
 /* The sample loop while the contacts of idle roots stay open: their
@@ -1195,22 +1206,8 @@ static const char *idle_text(Ctx *x, Names *live) {
             l[n++] = *s;
     }
     Names lv = {0};
-    bool *keep = arena_alloc(sizeof(bool) * (size_t)(n + 1));
-    for (int i = n - 1; i >= 0; i--) {
-        if (l[i].def && !names_has(&lv, l[i].def))
-            continue;
-        keep[i] = true;
-        names_scan(&lv, l[i].text);
-    }
     Buf body = {0};
-    for (int i = 0; i < n; i++)
-        if (keep[i])
-            for (const char *p = l[i].text; *p;) { /* each line one level deeper */
-                const char *e = strchr(p, '\n');
-                size_t len = e ? (size_t)(e - p) + 1 : strlen(p);
-                emit(&body, "    %.*s", (int)len, p);
-                p += len;
-            }
+    indented(&body, live_text(l, n, &lv));
     /* entering: each mass's last incident wave is its held one, as after
      * a sample of the full loop with the contact open */
     Buf open = {0}, hold = {0};
@@ -2434,12 +2431,7 @@ static void decl_run(Buf *decl, Buf *wb, Buf *fl) {
     const char *body = str(fl);
     Buf b = {0};
     emit(&b, "        if (t_run == FLUSH_RUN) {\n            t_run = 0;\n");
-    for (const char *p = body; *p;) { /* each line one level deeper */
-        const char *e = strchr(p, '\n');
-        size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
-        emit(&b, "    %.*s", (int)n, p);
-        p += n;
-    }
+    indented(&b, body);
     emit(&b, "        }\n");
     *fl = b;
 }

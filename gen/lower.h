@@ -87,6 +87,9 @@ Elem *lower_source(Lower *L, Line *l, ElemKind k, int from, int to);
 Expr *lower_recip(Expr *x);
 /* A nonlinearity of kind k, its solver= read from line l. */
 NlSpec *lower_nl(Line *l, NlKind k);
+/* A nonlinearity that only solver s solves: any other solver= is refused
+ * with `why`, and s becomes its solver. */
+void lower_only_solver(NlSpec *nl, Solver s, const char *why);
 /* Reads curve=(v0:i0 v1:i1 ...) into nl: a monotone, passive curve. */
 void lower_curve(Line *l, NlSpec *nl);
 /* A capacitor or spring given by curve= instead of its value (key vkey):

@@ -330,7 +330,19 @@ static Value value(Parser *P) {
 
 static bool at_keyval(Parser *P) { return P->tok->kind == TK_IDENT && P->tok[1].kind == TK_EQ; }
 
-/* keyval = WORD '=' value; collects them to the end of the line. */
+/* keyval = WORD '=' value, at a keyval. */
+static KeyVal *keyval(Parser *P) {
+    KeyVal *k = arena_alloc(sizeof(KeyVal));
+    k->key = tok_str(P->tok);
+    k->pos = P->tok->pos;
+    P->tok += 2;
+    if (at_eol(P))
+        error_at(P->tok[-1].pos, "expected a value after '='");
+    k->val = value(P);
+    return k;
+}
+
+/* Collects keyvals to the end of the line. */
 static void keyvals(Parser *P, Line *l) {
     Vec kv = {0};
     while (!at_eol(P)) {
@@ -342,16 +354,10 @@ static void keyvals(Parser *P, Line *l) {
             Token *t = P->tok;
             error_at(t->pos, "unexpected '%.*s': expected key=value", t->len, t->text);
         }
-        KeyVal *k = arena_alloc(sizeof(KeyVal));
-        k->key = tok_str(P->tok);
-        k->pos = P->tok->pos;
+        KeyVal *k = keyval(P);
         for (int i = 0; i < kv.len; i++)
             if (!strcmp(((KeyVal *)kv.data[i])->key, k->key))
                 error_at(k->pos, "key '%s' given twice", k->key);
-        P->tok += 2;
-        if (at_eol(P))
-            error_at(P->tok[-1].pos, "expected a value after '='");
-        k->val = value(P);
         vec_push(&kv, k);
     }
     l->nkv = kv.len;
@@ -483,16 +489,25 @@ static void element(Parser *P, Line *l) {
 }
 
 /* ref = WORD '(' WORD [',' WORD] ')' */
+/* SPICE's measures of the AC analysis, vdb(out) and such, which name a
+ * signal v() or i(). */
+static bool ac_measure(const Token *t) {
+    static const char *const ac[] = {"vdb", "vm", "vp", "vr", "vi", "idb", "im", "ip", "ir", "ii"};
+    for (int i = 0; i < (int)(sizeof ac / sizeof ac[0]); i++)
+        if (tok_is(t, ac[i]))
+            return true;
+    return false;
+}
+
 static Ref ref(Parser *P) {
     Token *t = P->tok;
     Ref r = {.pos = t->pos};
-    static const char *const ac[] = {"vdb", "vm", "vp", "vr", "vi", "idb", "im", "ip", "ir", "ii"};
-    for (int i = 0; P->file->spice && t->kind == TK_IDENT && t[1].kind == TK_LPAREN && i < 10; i++)
-        if (tok_is(t, ac[i])) { /* .print ac vdb(out): the signal is v(out) */
-            note_at(t->pos, "'%s(...)' measures the AC analysis; the voice outputs the signal, %c(...)", ac[i],
-                    ac[i][0]);
-            t->len = 1;
-        }
+    if (P->file->spice && t->kind == TK_IDENT && t[1].kind == TK_LPAREN && ac_measure(t)) {
+        /* .print ac vdb(out): the signal is v(out) */
+        note_at(t->pos, "'%.*s(...)' measures the AC analysis; the voice outputs the signal, %c(...)", t->len, t->text,
+                t->text[0]);
+        t->len = 1;
+    }
     if (t->kind != TK_IDENT || t->len != 1 || !strchr("vixfVIXF", t->text[0]) ||
         t[1].kind != TK_LPAREN)
         error_at(t->pos, "expected a probe v(node), v(a,b), i(elem), x(node) or f(elem)");
@@ -635,14 +650,7 @@ static bool directive(Parser *P, Line *l) {
                 P->tok++;
                 continue;
             }
-            KeyVal *k = arena_alloc(sizeof(KeyVal));
-            k->key = tok_str(P->tok);
-            k->pos = P->tok->pos;
-            P->tok += 2;
-            if (at_eol(P))
-                error_at(P->tok[-1].pos, "expected a value after '='");
-            k->val = value(P);
-            vec_push(&kv, k);
+            vec_push(&kv, keyval(P));
         }
         l->head = ".options";
         l->nkv = kv.len;
@@ -735,8 +743,7 @@ static void control(Parser *P, Vec *lines, SrcPos pos) {
             while (!at_eol(P)) {
                 Token *w = P->tok;
                 if (w->kind == TK_IDENT && w[1].kind == TK_LPAREN &&
-                    (w->len == 1 ? strchr("vi", w->text[0]) != NULL : tok_is(w, "vdb") || tok_is(w, "vm") ||
-                                                                     tok_is(w, "vp") || tok_is(w, "vr") || tok_is(w, "vi")))
+                    (w->len == 1 ? strchr("vi", w->text[0]) != NULL : ac_measure(w)))
                     push_ref(&refs, NULL, ref(P), NULL);
                 else
                     P->tok++;
