@@ -9,7 +9,7 @@
  * Circuits: netlists/rc_lowpass.wdn, netlists/diode_clipper.wdn (an
  * antiparallel pair) and netlists/diode_single.wdn (one diode).
  *   - Ours: each in double and in float precision, each diode voice with
- *     --solver newton, omega and pwl (its default table, 256 points).
+ *     --solver fast, newton, omega and pwl (its default table, 256 points).
  *     bin/wdc ($WDC overrides the path) emits the voice with --rate and
  *     the solver into a temporary directory, from a copy of the netlist
  *     without its solver= keys, and $CC (default cc) compiles it with
@@ -114,11 +114,12 @@ typedef struct SolverCase {
 } SolverCase;
 
 static const SolverCase diode_solvers[] = {
+    {"fast", {"--solver", "fast", NULL}},
     {"newton", {"--solver", "newton", NULL}},
     {"omega", {"--solver", "omega", NULL}},
     {"pwl", {"--solver", "pwl", NULL}},
 };
-#define NSOLVERS 3
+#define NSOLVERS 4
 
 /* ---- the circuits ---- */
 

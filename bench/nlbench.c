@@ -5,7 +5,7 @@
  *
  * Of the netlists given, those with nonlinear elements (E_NL) are measured;
  * the others are passed over.  For each of them, each solver that applies
- * to its nonlinear elements (diodes: newton, omega, and pwl with tables of
+ * to its nonlinear elements (diodes: fast, newton, omega, and pwl with tables of
  * 64, 256, 1024 and 4096 points; curves given by points: their exact pwl
  * map; contacts alone: newton) and each rate of 48, 96 and 192 kHz:
  *
@@ -84,6 +84,7 @@ typedef struct SolverCase {
 } SolverCase;
 
 static const SolverCase diode_cases[] = {
+    {"fast", {"--solver", "fast", NULL}},
     {"newton", {"--solver", "newton", NULL}},
     {"omega", {"--solver", "omega", NULL}},
     {"pwl 64", {"--solver", "pwl", "--table", "64", NULL}},
@@ -271,7 +272,7 @@ static int render_ref(const Circuit *c, double fs, int fine, double amp, long nf
 
 /* ---- preparation: references and builds, in parallel ---- */
 
-#define MAXCASES 6
+#define MAXCASES 7
 
 /* Everything one netlist needs before the measurements: the voices of
  * every rate and solver, and the reference runs, in memory shared with

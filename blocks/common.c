@@ -50,7 +50,9 @@ static Solver solver_of(Line *l, NlSpec *nl) {
         return SOLVER_NEWTON;
     if (!strcmp(v, "omega"))
         return SOLVER_OMEGA;
-    error_at(k->val.pos, "solver= takes pwl, newton or omega");
+    if (!strcmp(v, "fast"))
+        return SOLVER_FAST;
+    error_at(k->val.pos, "solver= takes fast, newton, omega or pwl");
 }
 
 NlSpec *lower_nl(Line *l, NlKind k) {

@@ -11,7 +11,7 @@
 #include "gen.h"
 #include "solve.h"
 
-extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[],
+extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[], tmpl_nl_fast[],
     tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
     tmpl_lu[], tmpl_retune[], tmpl_root[], tmpl_nl_adapt[], tmpl_settle[], tmpl_params[];
 
@@ -262,6 +262,30 @@ static const Elem *nl_elem(Ctx *x, int k) {
     return &x->c->elems[x->w->roots[x->nl_root[k]].edge[x->nl_edge[k]].elem];
 }
 
+static Solver solver_of(Ctx *x, const NlSpec *nl) {
+    return nl->solver != SOLVER_DEFAULT ? nl->solver : x->opt->solver != SOLVER_DEFAULT ? x->opt->solver
+                                                                                      : SOLVER_FAST;
+}
+
+/* Nonlinear edge k is a diode (or pair) that diode_fast solves. */
+static bool fast_diode(Ctx *x, int k) {
+    const NlSpec *nl = nl_elem(x, k)->nl;
+    return nl->kind == NL_DIODE && !nl->mutated && solver_of(x, nl) == SOLVER_FAST;
+}
+
+/* points of diode_fast's omega table: OM_N of templates/nl_fast.c.tmpl */
+#define OMEGA_TABLE 560
+
+/* The first of them, or -1. */
+static int first_fast(Ctx *x) {
+    for (int k = 0; k < x->nnl; k++)
+        if (fast_diode(x, k))
+            return k;
+    return -1;
+}
+
+static bool any_fast(Ctx *x) { return first_fast(x) >= 0; }
+
 /* C text of an elaborated expression over p[]. */
 static const char *cexpr(Ctx *x, const Expr *e) {
     static const char *ops = "+-*/";
@@ -411,6 +435,10 @@ static void emit_update(Ctx *x, Buf *o) {
         else if (*x->rfn[b])
             emit(o, "    %s\n        root%d_solve(st);\n", guard(x->w->roots[b].pmask), b);
     }
+    for (int k = 0; k < x->nnl; k++) /* diode_fast's ln c, from the adapted port and the law */
+        if (fast_diode(x, k))
+            emit(o, "    st->c_nl[%d] = (real)log(%s * %s / %s);\n", 4 * k + 2, dbl(x, format("st->c_Rn[%d]", k)),
+                 dbl(x, format("st->c_nl[%d]", 4 * k)), dbl(x, format("st->c_nl[%d]", 4 * k + 1)));
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (e->kind == E_W && e->peer > i) /* one delay per line */
@@ -607,10 +635,6 @@ static const char *root_in(Ctx *x, int b, int j) {
     return e->kind == EDGE_PORT ? x->b[e->node->id] : drive_of(x, &x->c->elems[e->elem]);
 }
 
-static Solver solver_of(Ctx *x, const NlSpec *nl) {
-    return nl->solver != SOLVER_DEFAULT ? nl->solver : x->opt->solver != SOLVER_DEFAULT ? x->opt->solver
-                                                                                      : SOLVER_NEWTON;
-}
 
 /* The element at the other side of a waveguide port's point. */
 static int partner_port(Ctx *x, int ei) {
@@ -751,6 +775,11 @@ static void emit_nl_solve(Ctx *x, int k) {
     switch (solver_of(x, nl)) {
     case SOLVER_PWL:
         emit(&o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
+        break;
+    case SOLVER_FAST:
+        emit(&o, "            const double t_v = diode_fast(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, c_nl%d_2, c_om, %s, %d);\n",
+             k, k, k, k, nl->pair, k, tol, it);
+        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n", k, k, an);
         break;
     case SOLVER_OMEGA:
         emit(&o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k,
@@ -1299,6 +1328,8 @@ static void emit_hoist(Ctx *x) {
             local(x, format("s_n%s%d", sn[j], k), format("    real s_n%s%d = st->s_n%s[%d];\n", sn[j], k, sn[j], k),
                   format("    st->s_n%s[%d] = s_n%s%d;\n", sn[j], k, sn[j], k),
                   format("        s_n%s%d = flush(s_n%s%d);\n", sn[j], k, sn[j], k));
+        if (fast_diode(x, k) && k == first_fast(x))
+            local(x, "c_om", "    const double *const c_om = st->c_om;\n", NULL, NULL);
         if (x->pwl_n[k]) {
             static const char *pn[] = {"a", "b", "s"};
             for (int j = 0; j < 3; j++)
@@ -1593,7 +1624,7 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
 
 static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *force) {
-    bool diode = false, omega = false, pwl = false, contact = false, memory = false, inductor = false,
+    bool newton = false, fast = false, omega = false, pwl = false, contact = false, memory = false, inductor = false,
          capacitor = false;
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
@@ -1631,16 +1662,22 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
             emit(retune, "    pwl_table(nl_v%d, nl_i%d, %d, st->c_Rn[%d], st->c_pa + %d, st->c_pb + %d, st->c_ps + %d);\n",
                  k, k, x->pwl_n[k], k, x->pwl_off[k], x->pwl_off[k], x->pwl_off[k]);
         } else {
-            diode = true;
-            omega |= solver_of(x, e->nl) == SOLVER_OMEGA;
+            Solver s = solver_of(x, e->nl);
+            omega |= s == SOLVER_OMEGA;
+            fast |= s == SOLVER_FAST;
+            newton |= s == SOLVER_NEWTON || s == SOLVER_OMEGA; /* omega finishes a pair by Newton */
         }
     }
-    if (diode || memory)
+    if (newton || memory)
         emit(kernels, "%s", tmpl_nl_diode_i);
-    if (diode)
-        emit(kernels, "%s%s", tmpl_nl_wright, tmpl_nl_diode);
+    if (newton || fast)
+        emit(kernels, "%s", tmpl_nl_wright);
+    if (newton)
+        emit(kernels, "%s", tmpl_nl_diode);
     if (omega)
         emit(kernels, "%s", tmpl_nl_omega);
+    if (fast)
+        emit(kernels, "%s", tmpl_nl_fast);
     if (pwl)
         emit(kernels, "%s", tmpl_nl_pwl);
     if (memory)
@@ -2036,7 +2073,9 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "s_wi", work ? x->nsrc : 0, "sources: last current (V) or voltage (I)");
     scalar(&b, work, "double s_work;", "work done by the sources since reset");
     field(&b, r, "c_Rn", x->nnl, "nonlinear edges: adapted port resistance");
-    field(&b, r, "c_nl", 4 * x->nnl, "nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact)");
+    field(&b, r, "c_nl", 4 * x->nnl,
+          "nonlinear edges: Is, n Vt, ln(R Is / n Vt) (diode) or k, alpha, lambda, gap (contact)");
+    field(&b, "double", "c_om", any_fast(x) ? 2 * OMEGA_TABLE : 0, "diode_fast: Wright omega and its slope on unit steps");
     field(&b, r, "s_nX", x->nnl, "contacts: x(n0) - x(n1), m");
     field(&b, r, "s_nv", x->nnl, "nonlinear edges: last voltage (velocity) across");
     field(&b, r, "s_nf", x->nnl,
@@ -2116,7 +2155,7 @@ static void pwl_points(Ctx *x, const Elem *e, int k) {
     }
     if (expr_params(nl->Is) || expr_params(nl->n) || expr_params(nl->Vt))
         error_at(e->pos, "diode '%s': a piecewise-linear table is made at compile time, so Is, n and Vt must "
-                 "not depend on params (use solver=newton or omega)", e->name);
+                 "not depend on params (use solver=fast, newton or omega)", e->name);
     double Is = expr_eval(nl->Is, NULL), nVt = expr_eval(nl->n, NULL) * expr_eval(nl->Vt, NULL);
     int n = x->opt->table;
     double vmax = nVt * log(1 + 1 / Is);
@@ -2407,7 +2446,7 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
         emit(&head, "    const double T = 1.0 / st->fs;\n");
     set(t, "update_args", format("state *st%s%s", ud ? ", unsigned long long d" : "", uf ? ", int full" : ""));
     set(t, "update", format("%s%s", str(&head), body));
-    set(t, "init", format("%s    update(st%s%s);\n",
+    set(t, "init", format("%s%s    update(st%s%s);\n", any_fast(x) ? "    omega_table(st->c_om);\n" : "",
                           c->nparams ? "    for (int i = 0; i < N_PARAMS; i++)\n        st->p[i] = param_desc[i].def;\n"
                                      : "",
                           ud ? ", 0" : "", uf ? ", 1" : ""));

@@ -340,6 +340,7 @@ typedef enum {
     SOLVER_PWL,     /* piecewise-linear wave map, explicit */
     SOLVER_NEWTON,  /* damped, bracketed Newton with a hard iteration cap */
     SOLVER_OMEGA,   /* Wright omega closed form (diodes) */
+    SOLVER_FAST,    /* tabulated omega predictor, Halley steps on the exact law (diodes' default) */
 } Solver;
 
 /* A nonlinear element.  Its current flows from n0 to n1 through it. */

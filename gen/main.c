@@ -42,7 +42,7 @@ static void usage(FILE *f) {
         "       wdc FILE.wdn --lv2 DIR [--precision double|float]  an LV2 plugin bundle of the voice\n"
         "       wdc FILE.wdn --dot OUT.dot\n"
         "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n"
-        "nonlinear elements: [--solver newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
+        "nonlinear elements: [--solver fast|newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
         "SPEC: impulse[:A] | step[:A] | sine:FREQ[:A] | noise[:A] | FILE.wav (one per .input, in order)\n"
         "--energy: the voice counts the work its sources do, sample by sample (its work()); without\n"
         "          it process does no such accounting and work() returns NaN (energy() is always there)\n"
@@ -112,9 +112,9 @@ static Opts parse_args(int argc, char **argv) {
         } else if (!strcmp(a, "--solver")) {
             const char *v = TAKE();
             o.solver = !strcmp(v, "newton") ? SOLVER_NEWTON : !strcmp(v, "omega") ? SOLVER_OMEGA
-                     : !strcmp(v, "pwl") ? SOLVER_PWL : SOLVER_DEFAULT;
+                     : !strcmp(v, "pwl") ? SOLVER_PWL : !strcmp(v, "fast") ? SOLVER_FAST : SOLVER_DEFAULT;
             if (o.solver == SOLVER_DEFAULT)
-                usage_error("--solver takes newton, omega or pwl, not '%s'", v);
+                usage_error("--solver takes fast, newton, omega or pwl, not '%s'", v);
         } else if (!strcmp(a, "--table")) {
             double v = number_arg(a, TAKE());
             if (v < 2 || v > 1e6 || v != (int)v)

@@ -68,11 +68,11 @@ static void test_solvers(void **s) {
     (void)s;
     expect(".ic v(h)=1\nmass M h m=10m\ncontact H1 h 0 k=1e9 alpha=2.5 solver=pwl\n",
            "t.wdn:3:39: error: a contact has memory (its compression): only solver=newton applies");
-    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:-1 1:1) solver=fast\n",
-           "t.wdn:3:39: error: solver= takes pwl, newton or omega");
+    expect(".input in\nV1 a 0 in R=1k\nnlres N1 a 0 curve=(-1:-1 1:1) solver=secant\n",
+           "t.wdn:3:39: error: solver= takes fast, newton, omega or pwl");
     expect(".input in\n.param is 1n min=1p max=1u\nV1 a 0 in R=1k\nD1 a 0 dd solver=pwl\n.model dd D Is={is}\n",
            "t.wdn:4:1: error: diode 'D1': a piecewise-linear table is made at compile time, so Is, n and Vt must "
-           "not depend on params (use solver=newton or omega)");
+           "not depend on params (use solver=fast, newton or omega)");
     expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D Is=0\n",
            "t.wdn:3:1: error: diode 'D1' has Is = 0; it must be greater than 0");
     expect(".ic v(h)=1\nmass M h m=10m\ncontact H1 h 0 k=1e9 alpha=0.5\n",

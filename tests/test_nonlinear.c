@@ -5,12 +5,12 @@
  *
  * 1. Diode clippers (netlists/diode_clipper.wdn: an antiparallel pair;
  *    netlists/diode_single.wdn: one diode), each compiled with every
- *    solver (newton, omega, pwl with 256 and with 4096 table points),
+ *    solver (fast, newton, omega, pwl with 256 and with 4096 table points),
  *    driven at 48 kHz for 0.2 s by a 440 Hz sine of 1 V and of 10 V and
  *    by 1 V white noise, against refsim (tests/refsim.h), which solves the
  *    trapezoidal nodal equations with the exact diode law by damped
  *    Newton to 1e-13 in long double.
- *    - newton and omega solve the same discrete equations as the
+ *    - fast, newton and omega solve the same discrete equations as the
  *      reference, to their own tolerance (1e-12 relative step): every
  *      output's relative RMS error must stay below TOL_SOLVER = 1e-9.
  *    - pwl replaces the diode law by its chords through table points
@@ -86,7 +86,9 @@
 #include <stdint.h>
 
 #include <cmocka.h>
+#include <float.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -286,6 +288,7 @@ typedef struct solver_case {
 
 /* --energy: the passivity checks read work() */
 static const solver_case solvers[] = {
+    {"fast", {"--solver", "fast", "--energy", NULL}, 0},
     {"newton", {"--solver", "newton", "--energy", NULL}, 0},
     {"omega", {"--solver", "omega", "--energy", NULL}, 0},
     {"pwl 256", {"--solver", "pwl", "--table", "256", "--energy", NULL}, 256},
@@ -483,6 +486,103 @@ static void test_diode_clipper(void **state) {
 static void test_diode_single(void **state) {
     (void)state;
     diode_solvers("netlists/diode_single.wdn");
+}
+
+/* ---- 1b. the default solver across its range ---- */
+
+/* diode_fast (templates/nl_fast.c.tmpl) reads Wright's omega from a table
+ * over y = ln c + |a| / nVt + c in [-32, 527], c = Rp Is / nVt with Rp the
+ * port resistance the network presents, and uses the asymptote beyond;
+ * for a pair its predictor leaves out the diode that blocks, which is off
+ * by up to c.  Single diodes and pairs whose c runs from 1e-11 to about
+ * 10, at 8, 48 and 192 kHz, driven by 440 Hz sines of 1 mV to 1 kV (the
+ * largest reaching past the table on both sides) and the random steps,
+ * must match refsim like the other exact solvers, to TOL_SOLVER.  The
+ * current is read from the waves, (a - b) / 2Rp, so it loses the digits
+ * of v that a diode far below its knee leaves unused (|v| >> Rp |i|):
+ * where its relative error passes TOL_SOLVER, every sample's must stay
+ * within 64 ulp of the largest |v| over Rp. */
+typedef struct fast_case {
+    double R, C;
+    const char *Is, *n;
+} fast_case;
+
+static void test_fast_range(void **state) {
+    (void)state;
+    static const fast_case cases[] = {
+        {10, 1e-6, "10f", "1"},         /* c about 4e-12 */
+        {2.2e3, 1e-8, "2.52n", "1.752"}, /* the clipper's own */
+        {1e6, 1e-9, "1u", "2"},          /* c about 0.2 at 48 kHz */
+        {1e6, 1e-11, "1u", "2"},         /* c about 10 */
+    };
+    static const double rates[] = {8000.0, 48000.0, 192000.0};
+    static const double amps[] = {1e-3, 1.0, 10.0, 1e3, 0.0}; /* 0: the random steps */
+    int failed = 0;
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++)
+        for (int pair = 0; pair < 2; pair++) {
+            char path[96] = "/tmp/wdc-fast-XXXXXX.wdn";
+            int fd = mkstemps(path, 4);
+            assert_true(fd >= 0);
+            track_temp(path);
+            FILE *f = fdopen(fd, "w");
+            assert_non_null(f);
+            fprintf(f, ".voice fastcase\n.input in\n.model dd D Is=%s n=%s Vt=25.85m pair=%d\n"
+                       "V1 in 0 in\nR1 in out %.17g\nC1 out 0 %.17g\nD1 out 0 dd\n"
+                       ".output out v(out)\n.output id i(D1)\n.end\n",
+                    cases[k].Is, cases[k].n, pair, cases[k].R, cases[k].C);
+            assert_int_equal(fclose(f), 0);
+            Circuit *c = wdc_load(path);
+            assert_non_null(c);
+            tl_voice v;
+            static const char *const args[] = {"--solver", "fast", NULL};
+            if (tl_voice_build_args(path, 0, args, NULL, &v) != 0) {
+                tl_voice_free(&v);
+                fail_msg("%s: the voice could not be built", path);
+            }
+            double worst = 0;
+            for (int ri = 0; ri < 3; ri++) {
+                double fs = rates[ri], Rp = 1.0 / (1.0 / cases[k].R + 2.0 * cases[k].C * fs);
+                long N = (long)(fs * 0.05);
+                double *in = calloc((size_t)N, sizeof(double));
+                assert_non_null(in);
+                double **ref = bufs_new(c->nouts, N), **out = bufs_new(c->nouts, N);
+                for (size_t ai = 0; ai < sizeof amps / sizeof amps[0]; ai++) {
+                    steps g;
+                    steps_init(&g, 0x5eedull + ai);
+                    for (long n = 0; n < N; n++)
+                        in[n] = amps[ai] > 0 ? amps[ai] * sin(2.0 * M_PI * 440.0 * (double)n / fs)
+                                             : steps_next(&g);
+                    refsim_nl_info info;
+                    run_ref(c, fs, in, N, ref, &info);
+                    assert_int_equal(info.unconverged, 0);
+                    run_voice(v.cls, fs, in, N, out);
+                    for (int o = 0; o < c->nouts; o++) {
+                        double e = rel_rms_error(out[o], ref[o], N);
+                        long at;
+                        bool ok = e < TOL_SOLVER;
+                        if (!ok && c->outs[o].kind == PR_I)
+                            ok = max_abs_diff(out[o], ref[o], N, &at) <= 64 * DBL_EPSILON * max_abs(ref[0], N) / Rp; /* ref[0]: v(out) */
+                        else
+                            worst = fmax(worst, e);
+                        if (!ok) {
+                            failed = 1;
+                            print_message("R=%g C=%g Is=%s n=%s pair=%d, %.0f Hz, amplitude %g: %s is "
+                                          "%.3g (relative RMS) off the converged reference\n",
+                                          cases[k].R, cases[k].C, cases[k].Is, cases[k].n, pair, fs,
+                                          amps[ai], c->outs[o].name, e);
+                        }
+                    }
+                }
+                tl_bufs_free(ref, c->nouts);
+                tl_bufs_free(out, c->nouts);
+                free(in);
+            }
+            print_message("fast: R=%-6g C=%-6g Is=%-5s n=%-5s pair=%d: worst %.1f dB over rates and drives\n",
+                          cases[k].R, cases[k].C, cases[k].Is, cases[k].n, pair, tl_db(worst));
+            tl_voice_free(&v);
+        }
+    if (failed)
+        fail_msg("the fast solver is off the converged reference");
 }
 
 /* ---- 2. contacts against the reference ---- */
@@ -1058,6 +1158,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_diode_clipper),
         cmocka_unit_test(test_diode_single),
+        cmocka_unit_test(test_fast_range),
         cmocka_unit_test(test_hammer_ref),
         cmocka_unit_test(test_mallet_ref),
         cmocka_unit_test(test_other_nonlinear),
