@@ -12,6 +12,11 @@
  * of wall time each.  The best run gives ns per sample and the number of
  * such voices one core renders in real time at 48 kHz.  A voice that
  * skips idle hammers is measured again as `wdc --no-skip` emits it.
+ * Then LANES (8) instances, each on its own stretch of the noise, render
+ * by one process call each and together by process_batch: ns per
+ * voice-sample of each (the time over 8 times the frames), and how many
+ * times cheaper the batch is.  (Eight instances of a voice with long
+ * delay lines no longer share the cache one instance has to itself.)
  *
  * A benchmark, not a test: the exit status is non-zero only if a voice
  * could not be built or loaded, or produced a non-finite sample.
@@ -46,6 +51,42 @@ typedef struct Voice {
     long pos; /* frame offset into the noise */
 } Voice;
 
+#define LANES 8
+
+/* LANES instances of one voice, rendered by process_batch. */
+typedef struct Batch {
+    const wdv_class *cls;
+    void *st[LANES];
+    double **noise;           /* the single voice's noise, read at each lane's own offset */
+    double *outbuf[LANES][16];
+    const double *in[LANES][16];
+    const double *const *inl[LANES];
+    double *const *outl[LANES];
+    long pos;
+} Batch;
+
+/* Renders nblocks by process_batch (batched) or a process call per
+ * instance, each lane reading the noise at its own offset. */
+static void render_lanes(Batch *b, long nblocks, int batched) {
+    const wdv_class *cls = b->cls;
+    for (long k = 0; k < nblocks; k++) {
+        for (int l = 0; l < LANES; l++) {
+            for (int i = 0; i < cls->n_inputs; i++)
+                b->in[l][i] = b->noise[i] + (b->pos + 977 * l) % (NOISE_LEN - BLOCK);
+            if (!batched)
+                cls->process(b->st[l], b->inl[l], b->outl[l], BLOCK);
+        }
+        if (batched)
+            cls->process_batch(b->st, LANES, b->inl, b->outl, BLOCK);
+        b->pos += BLOCK;
+        if (b->pos + BLOCK > NOISE_LEN)
+            b->pos = 0;
+    }
+}
+
+static void render_each(void *ctx, long nblocks) { render_lanes(ctx, nblocks, 0); }
+static void render_batch(void *ctx, long nblocks) { render_lanes(ctx, nblocks, 1); }
+
 static void render_blocks(void *ctx, long nblocks) {
     Voice *v = ctx;
     const wdv_class *cls = v->cls;
@@ -70,7 +111,7 @@ static double noise_sample(uint64_t *s) {
 }
 
 typedef struct Result {
-    double ns;
+    double ns, each_ns, batch_ns; /* per voice-sample of LANES voices: by process, by process_batch */
     size_t state_size;
     int ok, finite, skips;
 } Result;
@@ -118,8 +159,29 @@ static Result bench_one(const char *netlist, int single, double seconds, const c
         v.out[k] = v.outbuf[k];
     }
     res.ns = bench_measure(render_blocks, &v, BLOCK, RUNS, WARMUP_S, seconds);
+    Batch b = {.cls = v.cls, .noise = v.noise};
+    int bok = v.cls->process_batch != NULL;
+    for (int l = 0; l < LANES && bok; l++) {
+        b.st[l] = tl_state_new(v.cls, FS);
+        bok = b.st[l] != NULL;
+        for (int k = 0; k < v.cls->n_outputs && bok; k++)
+            bok = (b.outbuf[l][k] = calloc(BLOCK, sizeof(double))) != NULL;
+        b.inl[l] = b.in[l];
+        b.outl[l] = b.outbuf[l];
+    }
+    res.each_ns = bok ? bench_measure(render_each, &b, BLOCK * LANES, RUNS, WARMUP_S, seconds) : NAN;
+    res.batch_ns = bok ? bench_measure(render_batch, &b, BLOCK * LANES, RUNS, WARMUP_S, seconds) : NAN;
+    for (int l = 0; l < LANES; l++) {
+        for (int k = 0; k < v.cls->n_outputs; k++) {
+            for (int n = 0; n < BLOCK && b.outbuf[l][k]; n++)
+                if (!isfinite(b.outbuf[l][k][n]))
+                    bok = 0;
+            free(b.outbuf[l][k]);
+        }
+        tl_state_free(b.st[l]);
+    }
     res.state_size = v.cls->state_size;
-    res.finite = 1;
+    res.finite = bok;
     for (int k = 0; k < v.cls->n_outputs; k++)
         for (int n = 0; n < BLOCK; n++)
             if (!isfinite(v.outbuf[k][n]))
@@ -150,10 +212,13 @@ int main(int argc, char **argv) {
            "best of %d runs of >= %.2g s after a %.2g s warm-up\n",
            FS, BLOCK, RUNS, seconds, WARMUP_S);
     printf("a row 'NAME -' is the voice above it without skipping its idle hammers (wdc --no-skip)\n");
+    printf("8 each, 8 batched: ns per voice-sample of %d instances rendered by a process call each and by\n"
+           "process_batch; ratio: the first over the second\n", LANES);
     bench_print_setup(CFLAGS);
-    printf("%-16s %-9s %10s %10s %18s\n", "netlist", "precision", "state B", "ns/sample", "voices/core@48k");
-    printf("%-16s %-9s %10s %10s %18s\n", "----------------", "---------", "----------", "----------",
-           "------------------");
+    printf("%-16s %-9s %10s %10s %18s %10s %10s %8s\n", "netlist", "precision", "state B", "ns/sample",
+           "voices/core@48k", "8 each", "8 batched", "ratio");
+    printf("%-16s %-9s %10s %10s %18s %10s %10s %8s\n", "----------------", "---------", "----------", "----------",
+           "------------------", "----------", "----------", "--------");
     fflush(stdout);
 
     int failed = 0;
@@ -176,8 +241,9 @@ int main(int argc, char **argv) {
                     printf("%-16s %-9s %10s %10s %18s\n", label, single ? "float" : "double", "-", "failed", "-");
                     failed = 1;
                 } else {
-                    printf("%-16s %-9s %10zu %10.2f %18.0f%s\n", label, single ? "float" : "double", r.state_size,
-                           r.ns, 1e9 / (r.ns * FS), r.finite ? "" : "  (non-finite output!)");
+                    printf("%-16s %-9s %10zu %10.2f %18.0f %10.2f %10.2f %7.2fx%s\n", label,
+                           single ? "float" : "double", r.state_size, r.ns, 1e9 / (r.ns * FS), r.each_ns, r.batch_ns,
+                           r.each_ns / r.batch_ns, r.finite ? "" : "  (non-finite output!)");
                     if (!r.finite)
                         failed = 1;
                 }

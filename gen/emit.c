@@ -138,7 +138,8 @@ static bool uses(const char *text, const char *name) {
 typedef struct Stmt {
     const char *def, *text;
     int own;    /* the root whose tree it computes, -1: none */
-    char phase; /* 'f' forward, 'a' a nonlinear edge's incident wave, 'r' root, 'b' backward, 0 other */
+    char phase; /* 'f' forward, 'a' a nonlinear edge's incident wave, 'r' root, 'b' backward,
+                   'p' the wave that last arrived at a waveguide port, 0 other */
 } Stmt;
 
 /* A local of process, loaded before the sample loop: `name` (NULL: always
@@ -209,7 +210,6 @@ typedef struct Ctx {
     int nidle;
     int own;         /* the root the statements being put compute, -1: none */
     char phase;      /* their phase (Stmt.phase) */
-    Buf wfix;        /* after idle samples: the waves that last arrived at idle taps */
     const char *dcop; /* a deck's DC operating point (dcop_static), or NULL */
 } Ctx;
 
@@ -590,9 +590,10 @@ static void emit_forward(Ctx *x) {
             case WD_WAVEGUIDE: {
                 int w = e->wg;
                 put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, wave_in(x, e, "t_pos"), e->name);
+                char ph = x->phase;
+                x->phase = 'p'; /* the idle loop keeps it too: a strike's settle reads it */
                 put(x, NULL, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
-                if (x->idle[n->root])
-                    emit(&x->wfix, "                s_wpre%d = %s;\n", x->sp_of[n->elem], wave_in(x, e, "t_pos - 1u"));
+                x->phase = ph;
                 x->b[i] = tb;
                 if (roams(x, e)) {
                     /* a tap off its string sends nothing into its junction */
@@ -1193,6 +1194,18 @@ static void indented(Buf *b, const char *text) {
     }
 }
 
+/* Each line of text `levels` levels (four spaces each) deeper. */
+static const char *deeper(const char *text, int levels) {
+    Buf b = {0};
+    for (const char *p = text; *p;) {
+        const char *e = strchr(p, '\n');
+        size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
+        emit(&b, "%*s%.*s", 4 * levels, "", (int)n, p);
+        p += n;
+    }
+    return str(&b);
+}
+
 /* The sample loop while the contacts of idle roots stay open: their
  * trees' forward waves and their contacts' incident waves first; then the
  * test that leaves this sample to the full loop if a contact would not
@@ -1204,7 +1217,7 @@ static const char *idle_text(Ctx *x, Names *live) {
     int n = 0;
     for (int i = 0; i < x->nstmt; i++) {
         const Stmt *s = &x->stmt[i];
-        if (s->own >= 0 && x->idle[s->own] && s->def && (s->phase == 'f' || s->phase == 'a'))
+        if (s->own >= 0 && x->idle[s->own] && ((s->def && (s->phase == 'f' || s->phase == 'a')) || s->phase == 'p'))
             l[n++] = *s;
     }
     Buf decl = {0}, test = {0};
@@ -1250,9 +1263,8 @@ static const char *idle_text(Ctx *x, Names *live) {
                  prims[x->c->elems[nd->elem].kind].wd == WD_HOLD_NEG ? "-" : "", x->react[i]);
     }
     const char *text = format("        if (%s) {\n            /* the contacts are open: the parts behind them wait */\n"
-                              "%s%s            for (; n < t_end; n++) {\n%s            }\n%s        }\n",
-                              str(&open), x->wfix.len ? "            const int t_n0 = n;\n" : "", str(&hold), str(&body),
-                              x->wfix.len ? format("            if (n > t_n0) {\n%s            }\n", str(&x->wfix)) : "");
+                              "%s            for (; n < t_end; n++) {\n%s            }\n        }\n",
+                              str(&open), str(&hold), str(&body));
     names_scan(live, text);
     return text;
 }
@@ -1395,7 +1407,9 @@ static void emit_hoist(Ctx *x) {
 
 /* The locals that kept text names (and those their declarations name),
  * in order: declarations, write-backs, flushes. */
-static void print_locals(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl) {
+/* The locals process keeps: those the text in *live names, and those
+ * their own declarations name; *live takes in their names. */
+static bool *kept_locals(Ctx *x, Names *live) {
     bool *keep = arena_alloc(sizeof(bool) * (size_t)(x->nloc + 1));
     for (int i = x->nloc - 1; i >= 0; i--) {
         const Local *l = &x->loc[i];
@@ -1404,6 +1418,11 @@ static void print_locals(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl) {
         keep[i] = true;
         names_scan(live, l->decl);
     }
+    return keep;
+}
+
+static void print_locals(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl) {
+    bool *keep = kept_locals(x, live);
     for (int i = 0; i < x->nloc; i++)
         if (keep[i]) {
             emit(decl, "%s", x->loc[i].decl);
@@ -2460,6 +2479,171 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
                   uf ? ", 0" : "");
 }
 
+/* ---- lanes: process for many instances at once ---- */
+
+/* Every identifier of C text that `lane` holds becomes NAME[l]; members
+ * (after -> or .), comments and literals are left alone. */
+static const char *in_lanes(const char *s, const Names *lane) {
+    Buf b = {0};
+    while (*s) {
+        if (s[0] == '/' && s[1] == '*') {
+            const char *e = strstr(s + 2, "*/");
+            size_t n = e ? (size_t)(e + 2 - s) : strlen(s);
+            emit(&b, "%.*s", (int)n, s);
+            s += n;
+        } else if (*s == '"' || *s == '\'') {
+            const char *p = s;
+            char q = *p++;
+            while (*p && *p != q)
+                p += p[0] == '\\' && p[1] ? 2 : 1;
+            p += *p != 0;
+            emit(&b, "%.*s", (int)(p - s), s);
+            s = p;
+        } else if (ident_char(*s) && !(*s >= '0' && *s <= '9')) {
+            const char *p = s;
+            while (ident_char(*p))
+                p++;
+            const char *q = b.len ? str(&b) + b.len : NULL; /* what precedes it */
+            bool member = q && ((q[-1] == '.') || (b.len >= 2 && q[-2] == '-' && q[-1] == '>'));
+            size_t slot;
+            bool hit = !member && names_find(lane, s, (size_t)(p - s), &slot);
+            emit(&b, hit ? "%.*s[l]" : "%.*s", (int)(p - s), s);
+            s = p;
+        } else if (*s >= '0' && *s <= '9') { /* a number, with its suffixes and exponent */
+            const char *p = s;
+            while (ident_char(*p) || *p == '.' || ((*p == '+' || *p == '-') && (p[-1] == 'e' || p[-1] == 'E')))
+                p++;
+            emit(&b, "%.*s", (int)(p - s), s);
+            s = p;
+        } else
+            emit(&b, "%c", *s++);
+    }
+    return str(&b);
+}
+
+/* A local's declaration `TYPE NAME = VALUE;` split into the type of a
+ * lane array of it (its top-level const dropped: the lanes are filled
+ * after they are declared) and its value; false for any other form. */
+static bool split_decl(const char *decl, const char *name, const char **type, const char **value) {
+    const char *p = decl;
+    while (*p == ' ')
+        p++;
+    const char *eq = strstr(p, " = "), *end = strrchr(p, ';');
+    size_t nl = strlen(name);
+    if (!eq || !end || end < eq || strcmp(end, ";\n") || (size_t)(eq - p) <= nl ||
+        strncmp(eq - nl, name, nl) || ident_char(eq[-(long)nl - 1]) || strchr(eq + 3, ';') != end)
+        return false;
+    char *t = format("%.*s", (int)(eq - nl - p), p);
+    size_t n = strlen(t);
+    while (n && t[n - 1] == ' ')
+        t[--n] = 0;
+    if (n > 6 && !strcmp(t + n - 6, "*const"))
+        t[n - 5] = 0; /* "T *const" -> "T *" */
+    else if (!strchr(t, '*') && !strncmp(t, "const ", 6))
+        t += 6;
+    *type = t;
+    *value = format("%.*s", (int)(end - eq - 3), eq + 3);
+    return true;
+}
+
+/* process_batch: n instances of the voice in lanes of WDV_LANES.  Each
+ * lane loads its locals from its state, the sample loop runs every lane
+ * at one frame before the next frame, and each lane writes its locals
+ * back: the arithmetic of each lane is process's, so the lanes' outputs
+ * are bit for bit n process calls'.  A hammer's idle loop is left out
+ * (its skip is exact).  A voice with delay lines or strings, or whose
+ * locals do not all take the plain form, is batched by calling process
+ * for each instance: its lines are a working set of their own. */
+static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
+    static const char *const head =
+        "/* Renders nframes for n instances at once (see wdvoice.h): states[l],\n"
+        " * in[l][k][i] and out[l][k][i] are instance l's. */\n"
+        "static void voice_process_batch(void *const *states, int n, const double *const *const *ins%s,\n"
+        "                                double *const *const *outs%s, int nframes) {\n";
+    Names live = {0};
+    names_scan(&live, sample);
+    bool *keep = kept_locals(x, &live);
+    Names lane = {0};
+    Buf arr = {0}, load = {0}, wb = {0}, fl = {0};
+    bool plain = true;
+    for (int i = 0; i < x->nloc && plain; i++) {
+        const Local *l = &x->loc[i];
+        const char *type, *value;
+        if (!keep[i])
+            continue;
+        if (!*l->decl) { /* nothing loaded: a store at the end only */
+            emit(&wb, "%s", l->wb);
+            emit(&fl, "%s", l->fl);
+            continue;
+        }
+        if (!l->name || !split_decl(l->decl, l->name, &type, &value)) {
+            plain = false;
+            break;
+        }
+        Names used = {0};
+        names_scan(&used, value);
+        bool fixed = true; /* a number, the same in every lane (cast to real, perhaps) */
+        for (size_t k = 0; k < used.cap; k++)
+            fixed = fixed && (!used.key[k] || !strcmp(used.key[k], "real"));
+        if (fixed) {
+            emit(&arr, "        const %s %s = %s;\n", type, l->name, value);
+            continue;
+        }
+        names_put(&lane, l->name, strlen(l->name));
+        emit(&arr, "        %s%s%s[WDV_LANES];\n", type, type[strlen(type) - 1] == '*' ? "" : " ", l->name);
+        emit(&load, "            %s[l] = %s;\n", l->name, in_lanes(value, &lane));
+        emit(&wb, "%s", l->wb);
+        emit(&fl, "%s", l->fl);
+    }
+    /* delay lines and strings: each instance's lines are its own working
+     * set; interleaved sample by sample they would not stay in cache */
+    if (!plain || x->nloc == 0 || x->nline || x->c->nwgs)
+        return format("%s    for (int l = 0; l < n; l++)\n        voice_process(states[l], ins[l], outs[l], nframes);\n}\n",
+                      format(head, "", ""));
+    bool flushes = fl.len > 0;
+    if (flushes) {
+        names_put(&lane, "t_run", 5);
+        emit(&arr, "        unsigned t_run[WDV_LANES];\n");
+        emit(&load, "            t_run[l] = st->s_run;\n");
+        emit(&wb, "    st->s_run = t_run;\n");
+    }
+    const char *body = in_lanes(sample, &lane), *fbody = in_lanes(str(&fl), &lane);
+    const char *wtext = in_lanes(str(&wb), &lane), *ltext = format("%s%s", deeper(dirty, 2), str(&load));
+    /* a lane's view of its own instance, named as process names it */
+    static const char *const view[3] = {"state *const st = vsts[l];", "const double *const *const in = inl[l];",
+                                        "double *const *const out = outl[l];"};
+    static const char *const vname[3] = {"st", "in", "out"};
+    const char *loop = format("%s%s", deeper(body, 2),
+                              flushes ? format("                if (++t_run[l] == FLUSH_RUN) {\n"
+                                               "                    t_run[l] = 0;\n%s                }\n",
+                                               deeper(fbody, 3))
+                                      : "");
+    const char *parts[3] = {ltext, loop, deeper(wtext, 2)};
+    bool uin = false, uout = false;
+    for (int k = 0; k < 3; k++) {
+        uin |= uses(parts[k], "in");
+        uout |= uses(parts[k], "out");
+    }
+    Buf b = {0};
+    emit(&b, "%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n",
+         format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
+    emit(&b, "        const int nl = n - l0 < WDV_LANES ? n - l0 : WDV_LANES;\n"
+             "        void *const *const vsts = states + l0;\n%s%s%s",
+         uin ? "        const double *const *const *const inl = ins + l0;\n" : "",
+         uout ? "        double *const *const *const outl = outs + l0;\n" : "", str(&arr));
+    for (int k = 0; k < 3; k++) {
+        const char *ind = k == 1 ? "                " : "            ";
+        emit(&b, k == 1 ? "        for (int n = 0; n < nframes; n++) {\n            for (int l = 0; l < nl; l++) {\n"
+                        : "        for (int l = 0; l < nl; l++) {\n");
+        for (int j = 0; j < 3; j++)
+            if (uses(parts[k], vname[j]))
+                emit(&b, "%s%s\n", ind, view[j]);
+        emit(&b, "%s%s", parts[k], k == 1 ? "            }\n        }\n" : "        }\n");
+    }
+    emit(&b, "    }\n}\n");
+    return str(&b);
+}
+
 /* process: the statements and locals its outputs and states need, and
  * its parameters (UNUSED where a voice has no inputs, say). */
 /* The count of samples since the last flush: loaded, stored, and the
@@ -2502,6 +2686,7 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
                                  : "nframes - n > FLUSH_RUN ? n + FLUSH_RUN : nframes");
     set(t, "run_count", x->flushes ? "        t_run += (unsigned)(t_end - n);\n" : "");
     set(t, "writeback", str(&wb));
+    set(t, "batch", batch_text(x, dirty, sample));
 }
 
 /* reset and set_ic: what they set before settle (`rest`: initial values;

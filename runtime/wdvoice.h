@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 3
+#define WDV_ABI_VERSION 4
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -106,6 +106,15 @@ typedef struct wdv_class {
     size_t design_size;
     void (*prepare)(double fs, const double *params, void *design);
     void (*install)(void *state, const void *design);
+    /* Renders nframes for n instances of this class at once: states[l],
+     * in[l][k][i] and out[l][k][i] are instance l's, as process takes them
+     * (the states distinct).  Each instance's samples are computed as
+     * process computes them, bit for bit, side by side with the others', so
+     * that one instance's wait for its last result is filled with the
+     * others' work.  Real-time safe.  NULL: the host calls process for
+     * each instance. */
+    void (*process_batch)(void *const *states, int n, const double *const *const *in,
+                          double *const *const *out, int nframes);
 } wdv_class;
 
 #endif

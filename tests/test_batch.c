@@ -1,0 +1,190 @@
+/*
+ * test_batch.c - process_batch against process: the lanes of a batch are
+ * the instances they stand for, bit for bit.
+ *
+ * For every example netlist (netlists/ *.wdn, tl_run_per_netlist) and the
+ * test networks with idle hammers, in double and in float: LANES
+ * instances (not a multiple of the voice's lanes of 8, so that the last
+ * group is partly filled) each get their own param values, drawn in their
+ * ranges, their own strikes (set_ic with random targets and values; a
+ * strike that cannot hold is refused alike on both sides) and their own
+ * input (white noise of their own seed and amplitude).  One set of
+ * instances runs by process, one call per instance and block; a copy runs
+ * by one process_batch call per block, on the same blocks of 1 to 127
+ * frames; between blocks some instances take new param values or strikes,
+ * the same on both sides.  Every output sample must be identical (compared
+ * as bits: the lanes compute what process computes, in the same order),
+ * and so must every instance's energy() at the end.  A batch of one
+ * instance and a batch of none are run too.
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "testlib.h"
+
+#define LANES 11
+#define FRAMES 6000
+#define MAXIO 16
+
+typedef struct side {
+    void *st[LANES];
+    double *out[LANES][MAXIO];
+} side;
+
+static void side_new(side *s, const wdv_class *cls, double fs) {
+    for (int l = 0; l < LANES; l++) {
+        s->st[l] = tl_state_new(cls, fs);
+        assert_non_null(s->st[l]);
+        for (int k = 0; k < cls->n_outputs; k++) {
+            s->out[l][k] = calloc(FRAMES, sizeof(double));
+            assert_non_null(s->out[l][k]);
+        }
+    }
+}
+
+static void side_free(side *s, const wdv_class *cls) {
+    for (int l = 0; l < LANES; l++) {
+        tl_state_free(s->st[l]);
+        for (int k = 0; k < cls->n_outputs; k++)
+            free(s->out[l][k]);
+    }
+}
+
+/* The same random param value or strike for lane l on both sides. */
+static void change(const wdv_class *cls, side *a, side *b, int l, tl_rng *r) {
+    if (cls->n_params && tl_rng_uniform(r) < 0.5) {
+        int id = (int)(tl_rng_next(r) % (uint64_t)cls->n_params);
+        const wdv_param *p = &cls->params[id];
+        double v = p->min + (p->max - p->min) * tl_rng_uniform(r);
+        assert_int_equal(cls->set_param(a->st[l], id, v), 0);
+        assert_int_equal(cls->set_param(b->st[l], id, v), 0);
+    } else if (cls->n_ic_targets) {
+        int ids[2];
+        double vals[2];
+        int n = 1 + (int)(tl_rng_next(r) % 2);
+        for (int k = 0; k < n; k++) {
+            ids[k] = (int)(tl_rng_next(r) % (uint64_t)cls->n_ic_targets);
+            /* velocities and voltages near 1, displacements near 1 mm */
+            vals[k] = tl_rng_signed(r) * (cls->ic_targets[ids[k]].name[0] == 'x' ? 1e-3 : 1.0);
+        }
+        int ra = cls->set_ic(a->st[l], n, ids, vals), rb = cls->set_ic(b->st[l], n, ids, vals);
+        assert_int_equal(ra, rb);
+    }
+}
+
+static void lanes_same(const char *path, int single) {
+    tl_voice v;
+    if (tl_voice_build(path, single, &v) != 0)
+        fail_msg("%s: the voice could not be built", path);
+    const wdv_class *cls = v.cls;
+    assert_non_null(cls->process_batch);
+    assert_true(cls->n_inputs <= MAXIO && cls->n_outputs <= MAXIO);
+    double fs = 48000;
+    side a, b;
+    side_new(&a, cls, fs);
+    side_new(&b, cls, fs);
+    tl_rng r;
+    tl_rng_seed(&r, tl_hash_str(path) ^ (uint64_t)single);
+    for (int l = 0; l < LANES; l++)
+        for (int k = 0; k < 3; k++)
+            change(cls, &a, &b, l, &r);
+    /* each lane's inputs: noise of its own amplitude */
+    double *in[LANES][MAXIO];
+    for (int l = 0; l < LANES; l++)
+        for (int k = 0; k < cls->n_inputs; k++) {
+            in[l][k] = malloc(sizeof(double) * FRAMES);
+            assert_non_null(in[l][k]);
+            double amp = 0.1 + 2 * tl_rng_uniform(&r);
+            for (int n = 0; n < FRAMES; n++)
+                in[l][k][n] = amp * tl_rng_signed(&r);
+        }
+    const double *ip[LANES][MAXIO], *const *ipl[LANES];
+    double *op[LANES][MAXIO], *const *opl[LANES];
+    void *bst[LANES];
+    for (int pos = 0; pos < FRAMES;) {
+        int nf = 1 + (int)(tl_rng_next(&r) % 127);
+        if (nf > FRAMES - pos)
+            nf = FRAMES - pos;
+        for (int l = 0; l < LANES; l++) {
+            for (int k = 0; k < cls->n_inputs; k++)
+                ip[l][k] = in[l][k] + pos;
+            for (int k = 0; k < cls->n_outputs; k++)
+                op[l][k] = a.out[l][k] + pos;
+            cls->process(a.st[l], ip[l], op[l], nf);
+            for (int k = 0; k < cls->n_outputs; k++)
+                op[l][k] = b.out[l][k] + pos;
+            ipl[l] = ip[l];
+            opl[l] = op[l];
+            bst[l] = b.st[l];
+        }
+        cls->process_batch(bst, LANES, ipl, opl, nf);
+        pos += nf;
+        for (int l = 0; l < LANES; l++)
+            if (tl_rng_uniform(&r) < 0.05)
+                change(cls, &a, &b, l, &r);
+    }
+    long diff = 0, first = -1;
+    int fl = -1, fk = -1;
+    for (int l = 0; l < LANES; l++)
+        for (int k = 0; k < cls->n_outputs; k++)
+            for (int n = 0; n < FRAMES; n++)
+                if (memcmp(&a.out[l][k][n], &b.out[l][k][n], sizeof(double))) {
+                    if (first < 0)
+                        first = n, fl = l, fk = k;
+                    diff++;
+                }
+    int ediff = 0;
+    for (int l = 0; l < LANES; l++) {
+        double ea = cls->energy(a.st[l]), eb = cls->energy(b.st[l]);
+        ediff += memcmp(&ea, &eb, sizeof ea) != 0;
+    }
+    /* a batch of one instance, and of none, over the first 16 frames again */
+    for (int l = 0; l < LANES; l++) {
+        for (int k = 0; k < cls->n_inputs; k++)
+            ip[l][k] = in[l][k];
+        for (int k = 0; k < cls->n_outputs; k++)
+            op[l][k] = b.out[l][k];
+    }
+    cls->process_batch(bst, 1, ipl, opl, 16);
+    cls->process_batch(bst, 0, ipl, opl, 16);
+    printf("%-34s %-6s %d lanes, %d frames: %ld output samples and %d energies differ from process\n", path,
+           single ? "float" : "double", LANES, FRAMES, diff, ediff);
+    if (diff)
+        print_error("first at lane %d, output %d, frame %ld: process %.17g, batch %.17g\n", fl, fk, first,
+                    a.out[fl][fk][first], b.out[fl][fk][first]);
+    for (int l = 0; l < LANES; l++)
+        for (int k = 0; k < cls->n_inputs; k++)
+            free(in[l][k]);
+    side_free(&a, cls);
+    side_free(&b, cls);
+    tl_voice_free(&v);
+    assert_int_equal(diff, 0);
+    assert_int_equal(ediff, 0);
+}
+
+static void test_netlist(void **state) {
+    const char *path = *state;
+    lanes_same(path, 0);
+    lanes_same(path, 1);
+}
+
+static void test_hammers(void **state) {
+    (void)state;
+    static const char *const nets[] = {"tests/nets/hammers_eight.wdn", "tests/nets/idle_with.wdn",
+                                       "netlists/clipper_sym.cir"};
+    for (int k = 0; k < 3; k++) {
+        lanes_same(nets[k], 0);
+        lanes_same(nets[k], 1);
+    }
+}
+
+int main(void) {
+    const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers)};
+    return tl_run_per_netlist("batch", test_netlist, fixed, 1);
+}
