@@ -12,6 +12,7 @@
  * of wall time each.  The best run gives ns per sample and the number of
  * such voices one core renders in real time at 48 kHz.  A voice that
  * skips idle hammers is measured again as `wdc --no-skip` emits it.
+ * The voice is built with --batch (its process is the same as without).
  * Then LANES (8) instances, each on its own stretch of the noise, render
  * by one process call each and together by process_batch: ns per
  * voice-sample of each (the time over 8 times the frames), and how many
@@ -133,7 +134,10 @@ static Result bench_one(const char *netlist, int single, double seconds, const c
     Result res = {0};
     tl_voice tv;
     Voice v = {0};
-    if (tl_voice_build_args(netlist, single, extra, CFLAGS, &tv) != 0)
+    const char *args[4] = {"--batch", NULL, NULL, NULL};
+    for (int k = 0; extra && extra[k] && k < 2; k++)
+        args[k + 1] = extra[k];
+    if (tl_voice_build_args(netlist, single, args, CFLAGS, &tv) != 0)
         goto out;
     res.skips = skips(&tv);
     v.cls = tv.cls;

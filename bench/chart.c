@@ -13,7 +13,10 @@
  *     bin/wdc ($WDC overrides the path) emits the voice with --rate and
  *     the solver into a temporary directory, from a copy of the netlist
  *     without its solver= keys, and $CC (default cc) compiles it with
- *     -std=c99 -shared -fPIC -O2; the runtime loads it.
+ *     -std=c99 -shared -fPIC -O2; the runtime loads it.  Each circuit
+ *     again in double with the default solver and --batch: 8 instances
+ *     rendered together by process_batch (solver "fast x8", "linear x8"),
+ *     timed per voice-sample, its accuracy that of lane 0.
  *   - Faust: bench/faust/rc_lowpass.dsp and diode_clipper.dsp, on
  *     wdmodels.lib, made C by `faust -lang c` (float) and `-lang c
  *     -double`, compiled with the voices' flags (-std=c99 -fPIC -O2).
@@ -157,13 +160,14 @@ static int ref_slot(int r, int d, int w) { return (r * NAMPS + d) * 2 + w; }
 
 /* ---- the points ---- */
 
-typedef enum { K_VOICE, K_FAUST, K_HANDRC, K_HANDCLIP, K_STRING, K_STK } Kind;
+typedef enum { K_VOICE, K_FAUST, K_HANDRC, K_HANDCLIP, K_STRING, K_STK } PointKind;
 
 typedef struct Point {
-    Kind kind;
+    PointKind kind;
     int circ;         /* index into circs; -1 for strings */
     int rate, single; /* index into rates; float precision */
     int solver;       /* index into diode_solvers; -1: none */
+    int lanes;        /* K_VOICE: 0, or LANES instances timed through process_batch */
     tl_voice v;       /* K_VOICE, K_STRING: v.dir "" until made */
     int emitted, built;
     int twin;         /* an earlier point whose voice's C is the same, or -1 */
@@ -175,11 +179,12 @@ typedef struct Point {
     double cents;                         /* worst |cents|; NAN: none */
 } Point;
 
-#define MAXPOINTS 96
+#define MAXPOINTS 128
+#define LANES 8 /* instances of a batched point */
 static Point points[MAXPOINTS];
 static int npoints;
 
-static const char *impl_name(Kind k) {
+static const char *impl_name(PointKind k) {
     switch (k) {
     case K_VOICE:
     case K_STRING:
@@ -196,6 +201,8 @@ static const char *impl_name(Kind k) {
 }
 
 static const char *solver_name(const Point *p) {
+    if (p->lanes)
+        return p->solver >= 0 ? "fast x8" : "linear x8";
     if (p->solver >= 0)
         return diode_solvers[p->solver].name;
     if (p->kind == K_FAUST && circs[p->circ].diodes)
@@ -207,9 +214,9 @@ static const char *solver_name(const Point *p) {
 
 static const char *model_name(const Point *p) { return p->circ >= 0 ? circs[p->circ].model : "pluck"; }
 
-static void add_point(Kind kind, int circ, int r, int single, int solver) {
+static Point *add_point(PointKind kind, int circ, int r, int single, int solver) {
     if (npoints == MAXPOINTS)
-        return;
+        return NULL;
     Point *p = &points[npoints++];
     memset(p, 0, sizeof *p);
     p->kind = kind;
@@ -223,6 +230,7 @@ static void add_point(Kind kind, int circ, int r, int single, int solver) {
     snprintf(p->name, sizeof p->name, "%s %s%s%s %.0fk %s", impl_name(kind), model_name(p),
              solver >= 0 ? " " : "", solver >= 0 ? diode_solvers[solver].name : "", rates[r] / 1e3,
              single ? "float" : "double");
+    return p;
 }
 
 static void list_points(void) {
@@ -234,6 +242,12 @@ static void list_points(void) {
                     add_point(K_VOICE, ci, r, single, -1);
                 for (int s = 0; c->diodes && s < NSOLVERS; s++)
                     add_point(K_VOICE, ci, r, single, s);
+            }
+            /* batched, in double, with the default solver */
+            Point *b = add_point(K_VOICE, ci, r, 0, c->diodes ? 0 : -1);
+            if (b) {
+                b->lanes = LANES;
+                snprintf(b->name + strlen(b->name), sizeof b->name - strlen(b->name), " x%d", LANES);
             }
             for (int single = 0; single < 2; single++)
                 if (c->faust[single])
@@ -282,6 +296,8 @@ static int voice_emit(const Point *p) {
     }
     for (int k = 0; p->solver >= 0 && diode_solvers[p->solver].args[k]; k++)
         argv[n++] = (char *)diode_solvers[p->solver].args[k];
+    if (p->lanes)
+        argv[n++] = "--batch";
     argv[n] = NULL;
     int st = -1;
     if (wdrt_spawn(argv, -1, &st) != WDRT_OK || st != 0) {
@@ -527,6 +543,7 @@ struct Runner {
     const Point *p;
     const wdv_class *cls;
     void *st;
+    void *lane[LANES]; /* a batched point's instances */
     int oid;
     const double *ins[MAXIO];
     double *outs[MAXIO];
@@ -542,6 +559,21 @@ static void run_voice(Runner *r, const double *in, double *out, int n) {
         r->ins[k] = in;
     r->outs[r->oid] = out;
     r->cls->process(r->st, r->ins, r->outs, n);
+}
+
+/* LANES instances by process_batch, each with the same drive; lane 0's
+ * output goes to out */
+static void run_lanes(Runner *r, const double *in, double *out, int n) {
+    const double *const *ip[LANES];
+    double *const *op[LANES];
+    for (int k = 0; k < r->cls->n_inputs; k++)
+        r->ins[k] = in;
+    for (int l = 0; l < LANES; l++) {
+        ip[l] = r->ins;
+        op[l] = r->outs;
+    }
+    r->cls->process_batch(r->lane, LANES, ip, op, n);
+    memcpy(out, r->outs[r->oid], sizeof(double) * (size_t)n);
 }
 
 static void run_faust(Runner *r, const double *in, double *out, int n) {
@@ -566,7 +598,13 @@ static int runner_start(Runner *r) {
     case K_VOICE:
         tl_state_free(r->st);
         r->st = tl_state_new(r->cls, fs);
-        r->run = run_voice;
+        r->run = p->lanes ? run_lanes : run_voice; /* a batch's accuracy is its lane 0's */
+        for (int l = 0; l < LANES; l++)
+            tl_state_free(r->lane[l]);
+        memset(r->lane, 0, sizeof r->lane);
+        for (int l = 0; p->lanes && l < LANES; l++)
+            if (!(r->lane[l] = tl_state_new(r->cls, fs)))
+                return -1;
         return r->st ? 0 : -1;
     case K_FAUST:
         if (!r->dsp)
@@ -617,6 +655,8 @@ static int runner_open(Runner *r, Point *p) {
 
 static void runner_close(Runner *r) {
     tl_state_free(r->st);
+    for (int l = 0; l < LANES; l++)
+        tl_state_free(r->lane[l]);
     if (r->dsp)
         r->fp->delete_dsp(r->dsp);
     for (int k = 0; k < MAXIO; k++)
@@ -679,7 +719,8 @@ static void measure_circuit(Point *p, double seconds) {
     Timed t = {&r, drive[NAMPS - 1], len, 0, {0}};
     if (runner_start(&r) != 0)
         goto out;
-    p->ns = bench_measure(render_circuit, &t, BLOCK, RUNS, WARMUP_S, seconds);
+    /* a batch: ns per voice-sample */
+    p->ns = bench_measure(render_circuit, &t, p->lanes ? BLOCK * p->lanes : BLOCK, RUNS, WARMUP_S, seconds);
     p->finite = all_finite(t.out, BLOCK);
     for (int d = 0; d < NAMPS; d++) {
         if (render_fresh(&r, drive[d], y, N + lag) != 0)

@@ -2556,6 +2556,8 @@ static bool split_decl(const char *decl, const char *name, const char **type, co
  * for each instance: its lines are a working set of their own. */
 static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
     static const char *const head =
+        "/* process_batch's lanes: the instances whose samples are computed side by side */\n"
+        "#define WDV_LANES 8\n\n"
         "/* Renders nframes for n instances at once (see wdvoice.h): states[l],\n"
         " * in[l][k][i] and out[l][k][i] are instance l's. */\n"
         "static void voice_process_batch(void *const *states, int n, const double *const *const *ins%s,\n"
@@ -2686,7 +2688,8 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
                                  : "nframes - n > FLUSH_RUN ? n + FLUSH_RUN : nframes");
     set(t, "run_count", x->flushes ? "        t_run += (unsigned)(t_end - n);\n" : "");
     set(t, "writeback", str(&wb));
-    set(t, "batch", batch_text(x, dirty, sample));
+    set(t, "batch", x->opt->batch ? batch_text(x, dirty, sample) : "");
+    set(t, "batch_entry", x->opt->batch ? "voice_process_batch" : "NULL");
 }
 
 /* reset and set_ic: what they set before settle (`rest`: initial values;

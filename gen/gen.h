@@ -657,6 +657,7 @@ typedef struct EmitOpts {
     bool single;        /* float precision */
     bool energy;        /* work accounting in process (--energy); else work() is NAN */
     bool no_skip;       /* process computes idle contacts' parts every sample (--no-skip) */
+    bool batch;         /* the class's process_batch renders instances in lanes (--batch) */
     Solver solver;      /* for nonlinear elements that name none */
     int table;          /* points of a diode's piecewise-linear table */
     double tol;         /* Newton: relative step tolerance */

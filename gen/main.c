@@ -27,7 +27,7 @@ typedef struct Opts {
     const char *inputs[16];
     int ninputs;
     double seconds, rate;
-    bool check, single, energy, no_skip, dump_elab, dump_wdf, tableau, has_outdir;
+    bool check, single, energy, no_skip, batch, dump_elab, dump_wdf, tableau, has_outdir;
     Solver solver;
     int table, maxit;
     double tol;
@@ -35,7 +35,7 @@ typedef struct Opts {
 
 static void usage(FILE *f) {
     fprintf(f,
-        "usage: wdc FILE.wdn [-o DIR] [--precision double|float] [--energy] [--no-skip]\n"
+        "usage: wdc FILE.wdn [-o DIR] [--precision double|float] [--energy] [--no-skip] [--batch]\n"
         "       wdc FILE.wdn --check\n"
         "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
         "                    [--csv OUT.csv] [--events FILE]\n"
@@ -48,6 +48,8 @@ static void usage(FILE *f) {
         "          it process does no such accounting and work() returns NaN (energy() is always there)\n"
         "--no-skip: process computes every part every sample; by default it skips a hammer (a mass\n"
         "          behind a contact on a string) while the contact stays open, with the same output\n"
+        "--batch: the voice's process_batch renders many instances at once, in lanes, each as\n"
+        "          process would (without it the class has none, and a host calls process for each)\n"
         "--spice: read FILE as a SPICE deck (as a file ending .cir, .sp, .spice or .net is read)\n"
         "-delab, -dwdf print the elaborated circuit or the adaptor tree.\n"
         "exit status: 0 ok, 1 netlist error, 2 usage error, 3 toolchain or internal error\n");
@@ -88,6 +90,7 @@ static Opts parse_args(int argc, char **argv) {
         else if (!strcmp(a, "--check")) o.check = true;
         else if (!strcmp(a, "--energy")) o.energy = true;
         else if (!strcmp(a, "--no-skip")) o.no_skip = true;
+        else if (!strcmp(a, "--batch")) o.batch = true;
         else if (!strcmp(a, "--spice")) spice_always = true;
         else if (!strcmp(a, "--render")) o.render = TAKE();
         else if (!strcmp(a, "--csv")) o.csv = TAKE();
@@ -719,7 +722,7 @@ int main(int argc, char **argv) {
     }
     if (o.check || ((o.dot || o.tableau) && !o.render))
         return 0;
-    EmitOpts eo = {.single = o.single, .energy = o.energy, .no_skip = o.no_skip, .outdir = o.outdir, .solver = o.solver,
+    EmitOpts eo = {.single = o.single, .energy = o.energy, .no_skip = o.no_skip, .batch = o.batch, .outdir = o.outdir, .solver = o.solver,
                    .table = o.table, .tol = o.tol, .maxit = o.maxit};
     if (o.lv2)
         return emit(w, &eo, o.lv2);

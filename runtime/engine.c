@@ -33,6 +33,7 @@
 #define SEQ_BITS 22
 #define SEQ_MASK ((1u << SEQ_BITS) - 1)
 #define MAX_POOLS 1000
+#define LANES 8        /* instances of one pool rendered by one process_batch call at most */
 
 enum { EV_STRIKE, EV_SET, EV_GAIN, EV_PLAY, EV_STOP, EV_MOVE, EV_LISTEN, EV_DESIGN };
 #define AIR_TABLE 256 /* distances the air filter is tabulated at */
@@ -208,9 +209,9 @@ struct wdrt_engine {
     double air_p[AIR_TABLE];
     int air_n[AIR_TABLE];
     double *mix;           /* B * nch */
-    double *obuf, *zero;   /* maxout * B outputs; B zeros */
-    double **optr;
-    const double **iptr;
+    double *obuf, *zero;   /* LANES lanes of maxout * B outputs; B zeros */
+    double **optr;         /* LANES lanes of maxout + 1 */
+    const double **iptr;   /* LANES lanes of maxin + 1 */
     int maxout, maxin;
     uint64_t time;         /* frames rendered (atomic) */
     double budget, rel;
@@ -302,10 +303,10 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(touched, sizeof(int) * (size_t)(c->npools + 1), 16);
     PLACE(pwake, (size_t)(c->npools + 1), 16);
     PLACE(mix, sizeof(double) * (size_t)c->block * (size_t)c->channels, 64);
-    PLACE(obuf, sizeof(double) * (size_t)c->block * (size_t)(L->maxout ? L->maxout : 1), 64);
+    PLACE(obuf, sizeof(double) * LANES * (size_t)c->block * (size_t)(L->maxout ? L->maxout : 1), 64);
     PLACE(zero, sizeof(double) * (size_t)c->block, 64);
-    PLACE(optr, sizeof(double *) * (size_t)(L->maxout + 1), 16);
-    PLACE(iptr, sizeof(double *) * (size_t)(L->maxin + 1), 16);
+    PLACE(optr, sizeof(double *) * LANES * (size_t)(L->maxout + 1), 16);
+    PLACE(iptr, sizeof(double *) * LANES * (size_t)(L->maxin + 1), 16);
     int ns = c->space.sources;
     if (ns > 0) {
         double md = c->space.max_delay > 0 ? c->space.max_delay : fmin(c->space.max / c->space.c, 3.0);
@@ -1366,9 +1367,11 @@ static void feed_segment(wdrt_engine *e, inst *v, const double *y, int a, int b,
 
 static double room_heard(const wdrt_engine *e, const room *r);
 
-static void mix_segment(wdrt_engine *e, inst *v, int a, int b, uint64_t t0) {
+/* Mixes [a, b) of the instance's outputs, which start at obuf (the
+ * outputs one after another, B frames apart). */
+static void mix_segment(wdrt_engine *e, inst *v, const double *obuf, int a, int b, uint64_t t0) {
     const pool *p = &e->pools[v->pool];
-    const double *y = e->obuf + (size_t)p->cfg.output * (size_t)e->B;
+    const double *y = obuf + (size_t)p->cfg.output * (size_t)e->B;
     if (p->cfg.placed) {
         feed_segment(e, v, y, a, b, t0);
         return;
@@ -1398,7 +1401,7 @@ static void process_segment(wdrt_engine *e, inst *v, int a, int b, int callpos, 
     for (int j = 0; j < cls->n_inputs; j++)
         e->iptr[j] = v->in && v->in[j] ? v->in[j] + callpos + a : e->zero;
     cls->process(v->st, e->iptr, e->optr, b - a);
-    mix_segment(e, v, a, b, t0);
+    mix_segment(e, v, e->obuf, a, b, t0);
 }
 
 /* The next event of the instance's chain or its pool's (pool events from
@@ -1452,6 +1455,63 @@ static void render_inst(wdrt_engine *e, int k, uint64_t t0, int nb, int callpos)
     }
     v->start = 0;
     v->chain = v->tail = -1;
+}
+
+/* Instance k renders the whole span [0, nb) in one process call: nothing
+ * acts on it inside the span (no event of its own or of its pool, no
+ * ramp), its class has process_batch, and it is not placed in space (a
+ * placed voice takes its slot as it renders). */
+static int whole_span(const wdrt_engine *e, int k) {
+    const inst *v = &e->inst[k];
+    const pool *p = &e->pools[v->pool];
+    return p->cfg.cls->process_batch && !p->cfg.placed && v->start == 0 && v->chain < 0 &&
+           (v->spare || p->chain < 0) && !v->nramps;
+}
+
+/* Renders the n instances ks (of one pool, each whole_span) by one
+ * process_batch call, each into its lane of obuf, then mixes them in
+ * order: what render_inst would give, bit for bit, since a voice's lanes
+ * compute what its process does. */
+static void render_lanes(wdrt_engine *e, const int *ks, int n, uint64_t t0, int nb, int callpos) {
+    const wdv_class *cls = cls_of(e, &e->inst[ks[0]]);
+    void *st[LANES];
+    const double *const *in[LANES];
+    double *const *out[LANES];
+    for (int l = 0; l < n; l++) {
+        inst *v = &e->inst[ks[l]];
+        double **o = e->optr + (size_t)l * (size_t)(e->maxout + 1);
+        const double **i = e->iptr + (size_t)l * (size_t)(e->maxin + 1);
+        for (int j = 0; j < cls->n_outputs; j++)
+            o[j] = e->obuf + ((size_t)l * (size_t)e->maxout + (size_t)j) * (size_t)e->B;
+        for (int j = 0; j < cls->n_inputs; j++)
+            i[j] = v->in && v->in[j] ? v->in[j] + callpos : e->zero;
+        st[l] = v->st;
+        in[l] = i;
+        out[l] = o;
+    }
+    cls->process_batch(st, n, in, out, nb);
+    for (int l = 0; l < n; l++) {
+        inst *v = &e->inst[ks[l]];
+        mix_segment(e, v, e->obuf + (size_t)l * (size_t)e->maxout * (size_t)e->B, 0, nb, t0);
+        v->chain = v->tail = -1;
+    }
+}
+
+/* Renders the active instances in order; runs of up to LANES of one pool
+ * that render their whole span go through process_batch together. */
+static void render_active(wdrt_engine *e, uint64_t t0, int nb, int callpos) {
+    for (int i = 0; i < e->nactive;) {
+        int k = e->active[i], n = 1;
+        if (whole_span(e, k))
+            while (n < LANES && i + n < e->nactive && e->inst[e->active[i + n]].pool == e->inst[k].pool &&
+                   whole_span(e, e->active[i + n]))
+                n++;
+        if (n > 1)
+            render_lanes(e, e->active + i, n, t0, nb, callpos);
+        else
+            render_inst(e, k, t0, nb, callpos);
+        i += n;
+    }
 }
 
 /* Ends a fade-out that has run its course. */
@@ -2121,8 +2181,7 @@ void wdrt_engine_process(wdrt_engine *e, double *out, uint32_t nframes) {
         if (e->excite)
             excite(e, t0, nb);
         memset(e->mix, 0, sizeof(double) * (size_t)nb * (size_t)e->nch);
-        for (int i = 0; i < e->nactive; i++)
-            render_inst(e, e->active[i], t0, nb, (int)done);
+        render_active(e, t0, nb, (int)done);
         space_mix(e, t0, nb);
         for (int i = 0; i < e->nblk; i++) /* the designs this span applied go back to the producer */
             if (e->blk[i].type == EV_DESIGN)

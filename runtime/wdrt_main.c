@@ -233,7 +233,7 @@ static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *li
     if (!root || !*root)
         root = "out/cache";
     hash h = {0xcbf29ce484222325ull};
-    hash_bytes(&h, "wdrt-voice-1", 12);
+    hash_bytes(&h, "wdrt-voice-2", 12); /* the version of how a voice is built here */
     if (hash_netlist(&h, netlist, 0) != 0) {
         fprintf(stderr, "wdrt: error: cannot read netlist '%s': %s\n", netlist, strerror(errno));
         return EXIT_INPUT;
@@ -256,7 +256,8 @@ static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *li
             fprintf(stderr, "wdrt: error: cannot make the cache folder '%s': %s\n", root, strerror(errno));
             return EXIT_TOOL;
         }
-        char *argv[] = {(char *)wdc, (char *)netlist, "-o", tmp, NULL};
+        /* --batch: the engine renders a pool's voices side by side */
+        char *argv[] = {(char *)wdc, (char *)netlist, "-o", tmp, "--batch", NULL};
         int status = 0;
         if (wdrt_spawn(argv, STDERR_FILENO, &status) != WDRT_OK || status != 0) {
             remove_dir(tmp);

@@ -111,8 +111,8 @@ typedef struct wdv_class {
      * (the states distinct).  Each instance's samples are computed as
      * process computes them, bit for bit, side by side with the others', so
      * that one instance's wait for its last result is filled with the
-     * others' work.  Real-time safe.  NULL: the host calls process for
-     * each instance. */
+     * others' work.  Real-time safe.  NULL (a voice built without
+     * `wdc --batch`): the host calls process for each instance. */
     void (*process_batch)(void *const *states, int n, const double *const *const *in,
                           double *const *const *out, int nframes);
 } wdv_class;

@@ -1,6 +1,6 @@
 /*
- * test_batch.c - process_batch against process: the lanes of a batch are
- * the instances they stand for, bit for bit.
+ * test_batch.c - process_batch (wdc --batch) against process: the lanes of
+ * a batch are the instances they stand for, bit for bit.
  *
  * For every example netlist (netlists/ *.wdn, tl_run_per_netlist) and the
  * test networks with idle hammers, in double and in float: LANES
@@ -80,7 +80,8 @@ static void change(const wdv_class *cls, side *a, side *b, int l, tl_rng *r) {
 
 static void lanes_same(const char *path, int single) {
     tl_voice v;
-    if (tl_voice_build(path, single, &v) != 0)
+    static const char *const batch[] = {"--batch", NULL};
+    if (tl_voice_build_args(path, single, batch, NULL, &v) != 0)
         fail_msg("%s: the voice could not be built", path);
     const wdv_class *cls = v.cls;
     assert_non_null(cls->process_batch);
@@ -174,6 +175,15 @@ static void test_netlist(void **state) {
     lanes_same(path, 1);
 }
 
+/* Without --batch a class has no process_batch. */
+static void test_opt_in(void **state) {
+    (void)state;
+    tl_voice v;
+    assert_int_equal(tl_voice_build("netlists/rc_lowpass.wdn", 0, &v), 0);
+    assert_null(v.cls->process_batch);
+    tl_voice_free(&v);
+}
+
 static void test_hammers(void **state) {
     (void)state;
     static const char *const nets[] = {"tests/nets/hammers_eight.wdn", "tests/nets/idle_with.wdn",
@@ -185,6 +195,6 @@ static void test_hammers(void **state) {
 }
 
 int main(void) {
-    const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers)};
-    return tl_run_per_netlist("batch", test_netlist, fixed, 1);
+    const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers), cmocka_unit_test(test_opt_in)};
+    return tl_run_per_netlist("batch", test_netlist, fixed, 2);
 }
