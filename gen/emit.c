@@ -2481,8 +2481,9 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
 
 /* ---- lanes: process for many instances at once ---- */
 
-/* Every identifier of C text that `lane` holds becomes NAME[l]; members
- * (after -> or .), comments and literals are left alone. */
+/* Every identifier of C text that `lane` holds becomes t_ln[l].NAME, lane
+ * l's copy; members (after -> or .), comments and literals are left
+ * alone. */
 static const char *in_lanes(const char *s, const Names *lane) {
     Buf b = {0};
     while (*s) {
@@ -2507,7 +2508,7 @@ static const char *in_lanes(const char *s, const Names *lane) {
             bool member = q && ((q[-1] == '.') || (b.len >= 2 && q[-2] == '-' && q[-1] == '>'));
             size_t slot;
             bool hit = !member && names_find(lane, s, (size_t)(p - s), &slot);
-            emit(&b, hit ? "%.*s[l]" : "%.*s", (int)(p - s), s);
+            emit(&b, hit ? "t_ln[l].%.*s" : "%.*s", (int)(p - s), s);
             s = p;
         } else if (*s >= '0' && *s <= '9') { /* a number, with its suffixes and exponent */
             const char *p = s;
@@ -2547,9 +2548,9 @@ static bool split_decl(const char *decl, const char *name, const char **type, co
 }
 
 /* process_batch: n instances of the voice in lanes of WDV_LANES.  Each
- * lane loads its locals from its state, the sample loop runs every lane
- * at one frame before the next frame, and each lane writes its locals
- * back: the arithmetic of each lane is process's, so the lanes' outputs
+ * lane loads its locals (t_ln[l], a struct of them) from its state, the
+ * sample loop runs every lane at one frame before the next frame, and
+ * each lane writes its locals back: the arithmetic of each lane is process's, so the lanes' outputs
  * are bit for bit n process calls'.  A hammer's idle loop is left out
  * (its skip is exact).  A voice with delay lines or strings, or whose
  * locals do not all take the plain form, is batched by calling process
@@ -2566,7 +2567,7 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
     names_scan(&live, sample);
     bool *keep = kept_locals(x, &live);
     Names lane = {0};
-    Buf arr = {0}, load = {0}, wb = {0}, fl = {0};
+    Buf fix = {0}, arr = {0}, load = {0}, wb = {0}, fl = {0};
     bool plain = true;
     for (int i = 0; i < x->nloc && plain; i++) {
         const Local *l = &x->loc[i];
@@ -2588,12 +2589,12 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
         for (size_t k = 0; k < used.cap; k++)
             fixed = fixed && (!used.key[k] || !strcmp(used.key[k], "real"));
         if (fixed) {
-            emit(&arr, "        const %s %s = %s;\n", type, l->name, value);
+            emit(&fix, "        const %s %s = %s;\n", type, l->name, value);
             continue;
         }
         names_put(&lane, l->name, strlen(l->name));
-        emit(&arr, "        %s%s%s[WDV_LANES];\n", type, type[strlen(type) - 1] == '*' ? "" : " ", l->name);
-        emit(&load, "            %s[l] = %s;\n", l->name, in_lanes(value, &lane));
+        emit(&arr, "            %s%s%s;\n", type, type[strlen(type) - 1] == '*' ? "" : " ", l->name);
+        emit(&load, "            t_ln[l].%s = %s;\n", l->name, in_lanes(value, &lane));
         emit(&wb, "%s", l->wb);
         emit(&fl, "%s", l->fl);
     }
@@ -2605,8 +2606,8 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
     bool flushes = fl.len > 0;
     if (flushes) {
         names_put(&lane, "t_run", 5);
-        emit(&arr, "        unsigned t_run[WDV_LANES];\n");
-        emit(&load, "            t_run[l] = st->s_run;\n");
+        emit(&arr, "            unsigned t_run;\n");
+        emit(&load, "            t_ln[l].t_run = st->s_run;\n");
         emit(&wb, "    st->s_run = t_run;\n");
     }
     const char *body = in_lanes(sample, &lane), *fbody = in_lanes(str(&fl), &lane);
@@ -2616,8 +2617,8 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
                                         "double *const *const out = outl[l];"};
     static const char *const vname[3] = {"st", "in", "out"};
     const char *loop = format("%s%s", deeper(body, 2),
-                              flushes ? format("                if (++t_run[l] == FLUSH_RUN) {\n"
-                                               "                    t_run[l] = 0;\n%s                }\n",
+                              flushes ? format("                if (++t_ln[l].t_run == FLUSH_RUN) {\n"
+                                               "                    t_ln[l].t_run = 0;\n%s                }\n",
                                                deeper(fbody, 3))
                                       : "");
     const char *parts[3] = {ltext, loop, deeper(wtext, 2)};
@@ -2632,7 +2633,11 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
     emit(&b, "        const int nl = n - l0 < WDV_LANES ? n - l0 : WDV_LANES;\n"
              "        void *const *const vsts = states + l0;\n%s%s%s",
          uin ? "        const double *const *const *const inl = ins + l0;\n" : "",
-         uout ? "        double *const *const *const outl = outs + l0;\n" : "", str(&arr));
+         uout ? "        double *const *const *const outl = outs + l0;\n" : "", str(&fix));
+    /* each lane's locals together: the lanes' interleaved work stays in
+     * few cache lines, and a compiler does not pack neighbouring lanes
+     * into vectors it would have to take apart again */
+    emit(&b, "        struct {\n%s        } t_ln[WDV_LANES];\n", str(&arr));
     for (int k = 0; k < 3; k++) {
         const char *ind = k == 1 ? "                " : "            ";
         emit(&b, k == 1 ? "        for (int n = 0; n < nframes; n++) {\n            for (int l = 0; l < nl; l++) {\n"
