@@ -14,8 +14,9 @@
  * frames; between blocks some instances take new param values or strikes,
  * the same on both sides.  Every output sample must be identical (compared
  * as bits: the lanes compute what process computes, in the same order),
- * and so must every instance's energy() at the end.  A batch of one
- * instance and a batch of none are run too.
+ * and so must every instance's energy() at the end (and work(), for
+ * voices built with --energy).  A batch of one instance and a batch of
+ * none are run too.
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -78,10 +79,10 @@ static void change(const wdv_class *cls, side *a, side *b, int l, tl_rng *r) {
     }
 }
 
-static void lanes_same(const char *path, int single) {
+static void lanes_same(const char *path, int single, int energy) {
     tl_voice v;
-    static const char *const batch[] = {"--batch", NULL};
-    if (tl_voice_build_args(path, single, batch, NULL, &v) != 0)
+    static const char *const batch[] = {"--batch", NULL}, *const counted[] = {"--batch", "--energy", NULL};
+    if (tl_voice_build_args(path, single, energy ? counted : batch, NULL, &v) != 0)
         fail_msg("%s: the voice could not be built", path);
     const wdv_class *cls = v.cls;
     assert_non_null(cls->process_batch);
@@ -143,7 +144,9 @@ static void lanes_same(const char *path, int single) {
     int ediff = 0;
     for (int l = 0; l < LANES; l++) {
         double ea = cls->energy(a.st[l]), eb = cls->energy(b.st[l]);
+        double wa = cls->work(a.st[l]), wb = cls->work(b.st[l]);
         ediff += memcmp(&ea, &eb, sizeof ea) != 0;
+        ediff += energy && memcmp(&wa, &wb, sizeof wa) != 0;
     }
     /* a batch of one instance, and of none, over the first 16 frames again */
     for (int l = 0; l < LANES; l++) {
@@ -154,8 +157,9 @@ static void lanes_same(const char *path, int single) {
     }
     cls->process_batch(bst, 1, ipl, opl, 16);
     cls->process_batch(bst, 0, ipl, opl, 16);
-    printf("%-34s %-6s %d lanes, %d frames: %ld output samples and %d energies differ from process\n", path,
-           single ? "float" : "double", LANES, FRAMES, diff, ediff);
+    printf("%-34s %-6s%s %d lanes, %d frames: %ld output samples and %d energies%s differ from process\n", path,
+           single ? "float" : "double", energy ? " --energy" : "", LANES, FRAMES, diff, ediff,
+           energy ? " and works" : "");
     if (diff)
         print_error("first at lane %d, output %d, frame %ld: process %.17g, batch %.17g\n", fl, fk, first,
                     a.out[fl][fk][first], b.out[fl][fk][first]);
@@ -171,8 +175,8 @@ static void lanes_same(const char *path, int single) {
 
 static void test_netlist(void **state) {
     const char *path = *state;
-    lanes_same(path, 0);
-    lanes_same(path, 1);
+    lanes_same(path, 0, 0);
+    lanes_same(path, 1, 0);
 }
 
 /* Without --batch a class has no process_batch. */
@@ -189,12 +193,22 @@ static void test_hammers(void **state) {
     static const char *const nets[] = {"tests/nets/hammers_eight.wdn", "tests/nets/idle_with.wdn",
                                        "netlists/clipper_sym.cir"};
     for (int k = 0; k < 3; k++) {
-        lanes_same(nets[k], 0);
-        lanes_same(nets[k], 1);
+        lanes_same(nets[k], 0, 0);
+        lanes_same(nets[k], 1, 0);
     }
 }
 
+/* Voices that count their sources' work (--energy): work() too. */
+static void test_energy(void **state) {
+    (void)state;
+    static const char *const nets[] = {"netlists/diode_clipper.wdn", "netlists/rlc_series.wdn",
+                                       "netlists/mallet_plate.wdn"};
+    for (int k = 0; k < 3; k++)
+        lanes_same(nets[k], 0, 1);
+}
+
 int main(void) {
-    const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers), cmocka_unit_test(test_opt_in)};
-    return tl_run_per_netlist("batch", test_netlist, fixed, 2);
+    const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers), cmocka_unit_test(test_opt_in),
+                                       cmocka_unit_test(test_energy)};
+    return tl_run_per_netlist("batch", test_netlist, fixed, 3);
 }
