@@ -56,6 +56,15 @@
  *      starts a note): the time of its note-on (set_param of f0, which
  *      redesigns the strings' loops, and set_ic), and ns per sample over
  *      the 2 s after it; best of 2.
+ *   5. Pools in lanes: a pool of 64 mallet_plate standing voices, every
+ *      one struck at frame 0 and again every 0.5 s (at speeds that vary
+ *      from voice to voice), mono; the class as built (with --batch: the
+ *      engine renders runs of eight voices through process_batch) and the
+ *      same class without process_batch (a process call per voice).  Best
+ *      of 5 spans of 5 s each, taking turns; ns per voice-sample, and the
+ *      two renders must be equal bit for bit.
+ *
+ * The voices are built with --batch (their process is the same without).
  *
  * A benchmark, not a test: nothing is asserted about times.  The exit
  * status is non-zero only if a voice could not be built, an engine could
@@ -116,7 +125,8 @@ static void build_voices(void) {
     static const char *const ics[NKIND][4] = {
         {"v(h1)", "x(h1)", "v(h2)", "x(h2)"}, {"v(m)", "x(m)", NULL, NULL}, {"v(h)", "x(h)", NULL, NULL}};
     for (int k = 0; k < NKIND; k++) {
-        if (tl_voice_build_args(g_netlist[k], 0, NULL, CFLAGS, &g_voice[k]) != 0)
+        static const char *const batch[] = {"--batch", NULL};
+        if (tl_voice_build_args(g_netlist[k], 0, batch, CFLAGS, &g_voice[k]) != 0)
             exit(1);
         g_cls[k] = g_voice[k].cls;
         g_out[k] = tl_output_id(g_cls[k], g_output[k]);
@@ -703,6 +713,53 @@ static void one_voice(one_result *res) {
     tl_bufs_free(ko, c->n_outputs);
 }
 
+/* ---- 5. pools in lanes ---- */
+
+#define LN_VOICES 64
+#define LN_SPAN 5.0
+#define LN_RUNS 5
+
+typedef struct lanes_result {
+    double ns[2]; /* per voice-sample: process_batch, a process call each */
+    int same, finite;
+} lanes_result;
+
+static void lanes(lanes_result *res) {
+    wdv_class plain = *g_cls[MALLET];
+    plain.process_batch = NULL;
+    const wdv_class *cls[2] = {g_cls[MALLET], &plain};
+    long ns = frames_of(LN_SPAN), every = frames_of(0.5);
+    wdrt_engine *e[2];
+    double *y[2];
+    for (int k = 0; k < 2; k++) {
+        wdrt_pool_config pc = pool_of(MALLET, LN_VOICES, 1);
+        pc.cls = cls[k];
+        e[k] = make_engine(1, 1, &pc, NULL, NULL);
+        for (long f = 0; f < ns * LN_RUNS; f += every)
+            for (int v = 0; v < LN_VOICES; v++)
+                strike(e[k], f, wdrt_engine_voice(e[k], 0, v), MALLET, 0.5 + 0.05 * ((v * 7 + f / every) % 40));
+        y[k] = buf((size_t)ns);
+        res->ns[k] = INFINITY;
+    }
+    res->same = res->finite = 1;
+    for (int r = 0; r < LN_RUNS; r++) {
+        for (int j = 0; j < 2; j++) {
+            int k = (r & 1) ? 1 - j : j;
+            double t0 = bench_now();
+            render(e[k], y[k], ns, 1, HOST);
+            double dt = (bench_now() - t0) * 1e9 / ((double)ns * LN_VOICES);
+            res->ns[k] = dt < res->ns[k] ? dt : res->ns[k];
+            res->finite &= all_finite(y[k], (size_t)ns);
+        }
+        if (first_diff(y[0], y[1], (size_t)ns) >= 0)
+            res->same = 0;
+    }
+    for (int k = 0; k < 2; k++) {
+        free(y[k]);
+        wdrt_engine_uninit(e[k], NULL);
+    }
+}
+
 /* ---- the report ---- */
 
 static const char *yes(int b) { return b ? "yes" : "NO"; }
@@ -832,6 +889,17 @@ int main(int argc, char **argv) {
            "   longest %.2f ms (%s), %.2f s for all 88\n\n",
            one.on_mean * 1e3, one.on_max * 1e3, kn, one.on_sum);
     failed |= !one.finite;
+
+    lanes_result ln;
+    lanes(&ln);
+    printf("5. Pools in lanes: %d mallet_plate standing voices, all struck every 0.5 s; mono; best of %d spans of "
+           "%.0f s\n", LN_VOICES, LN_RUNS, LN_SPAN);
+    printf("   %-44s %10s\n", "", "ns per voice-sample");
+    printf("   %-44s %10.1f\n", "runs of 8 voices through process_batch", ln.ns[0]);
+    printf("   %-44s %10.1f\n", "a process call per voice", ln.ns[1]);
+    printf("   ratio %.2fx; renders equal bit for bit: %s%s\n\n", ln.ns[1] / ln.ns[0], yes(ln.same),
+           ln.finite ? "" : "  (non-finite output!)");
+    failed |= !ln.finite || !ln.same;
 
     for (int k = 0; k < NKIND; k++)
         tl_voice_free(&g_voice[k]);
