@@ -2522,9 +2522,9 @@ static const char *in_lanes(const char *s, const Names *lane) {
     return str(&b);
 }
 
-/* A local's declaration `TYPE NAME = VALUE;` split into the type of a
- * lane array of it (its top-level const dropped: the lanes are filled
- * after they are declared) and its value; false for any other form. */
+/* A local's declaration `TYPE NAME = VALUE;` split into the type of its
+ * lanes' copies (its top-level const dropped: they are filled after they
+ * are declared) and its value; false for any other form. */
 static bool split_decl(const char *decl, const char *name, const char **type, const char **value) {
     const char *p = decl;
     while (*p == ' ')
@@ -2550,11 +2550,12 @@ static bool split_decl(const char *decl, const char *name, const char **type, co
 /* process_batch: n instances of the voice in lanes of WDV_LANES.  Each
  * lane loads its locals (t_ln[l], a struct of them) from its state, the
  * sample loop runs every lane at one frame before the next frame, and
- * each lane writes its locals back: the arithmetic of each lane is process's, so the lanes' outputs
- * are bit for bit n process calls'.  A hammer's idle loop is left out
- * (its skip is exact).  A voice with delay lines or strings, or whose
- * locals do not all take the plain form, is batched by calling process
- * for each instance: its lines are a working set of their own. */
+ * each lane writes its locals back: each lane's arithmetic is process's,
+ * so the lanes' outputs are bit for bit n process calls'.  A hammer's
+ * idle loop is left out (its skip is exact).  A voice with delay lines or
+ * strings, or whose locals do not all take the plain form, is batched by
+ * calling process for each instance: its lines are a working set of
+ * their own. */
 static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
     static const char *const head =
         "/* process_batch's lanes: the instances whose samples are computed side by side */\n"
