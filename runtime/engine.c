@@ -209,9 +209,9 @@ struct wdrt_engine {
     double air_p[AIR_TABLE];
     int air_n[AIR_TABLE];
     double *mix;           /* B * nch */
-    double *obuf, *zero;   /* LANES lanes of maxout * B outputs; B zeros */
-    double **optr;         /* LANES lanes of maxout + 1 */
-    const double **iptr;   /* LANES lanes of maxin + 1 */
+    double *obuf, *zero;   /* lanes of maxout * B outputs (LANES when a pool has process_batch, else one); B zeros */
+    double **optr;         /* lanes of maxout + 1 */
+    const double **iptr;   /* lanes of maxin + 1 */
     int maxout, maxin;
     uint64_t time;         /* frames rendered (atomic) */
     double budget, rel;
@@ -233,6 +233,7 @@ typedef struct layout {
     size_t engine, pools, inst, params, pramps, inptrs, states, q, heap, blk, active, virt, inputs, touched, pwake, mix,
         obuf, zero, optr, iptr, total;
     int ninst, nparams, nin, maxout, maxin, qcap;
+    int lanes;             /* LANES if a pool's class has process_batch, else 1 */
 } layout;
 
 static size_t up(size_t x, size_t a) { return (x + a - 1) / a * a; }
@@ -275,7 +276,11 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
             L->maxout = p->cls->n_outputs;
         if (p->cls->n_inputs > L->maxin)
             L->maxin = p->cls->n_inputs;
+        if (p->cls->process_batch)
+            L->lanes = LANES;
     }
+    if (!L->lanes)
+        L->lanes = 1;
     L->qcap = (int)pow2(c->queue);
     size_t o = 0;
 #define PLACE(field, bytes, align) (o = up(o, align), L->field = o, o += (bytes))
@@ -303,10 +308,10 @@ static void get_layout(const wdrt_engine_config *c, layout *L) {
     PLACE(touched, sizeof(int) * (size_t)(c->npools + 1), 16);
     PLACE(pwake, (size_t)(c->npools + 1), 16);
     PLACE(mix, sizeof(double) * (size_t)c->block * (size_t)c->channels, 64);
-    PLACE(obuf, sizeof(double) * LANES * (size_t)c->block * (size_t)(L->maxout ? L->maxout : 1), 64);
+    PLACE(obuf, sizeof(double) * (size_t)L->lanes * (size_t)c->block * (size_t)(L->maxout ? L->maxout : 1), 64);
     PLACE(zero, sizeof(double) * (size_t)c->block, 64);
-    PLACE(optr, sizeof(double *) * LANES * (size_t)(L->maxout + 1), 16);
-    PLACE(iptr, sizeof(double *) * LANES * (size_t)(L->maxin + 1), 16);
+    PLACE(optr, sizeof(double *) * (size_t)L->lanes * (size_t)(L->maxout + 1), 16);
+    PLACE(iptr, sizeof(double *) * (size_t)L->lanes * (size_t)(L->maxin + 1), 16);
     int ns = c->space.sources;
     if (ns > 0) {
         double md = c->space.max_delay > 0 ? c->space.max_delay : fmin(c->space.max / c->space.c, 3.0);
