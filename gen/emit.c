@@ -276,15 +276,12 @@ static bool fast_diode(Ctx *x, int k) {
 /* points of diode_fast's omega table: OM_N of templates/nl_fast.c.tmpl */
 #define OMEGA_TABLE 560
 
-/* The first of them, or -1. */
-static int first_fast(Ctx *x) {
+static bool any_fast(Ctx *x) {
     for (int k = 0; k < x->nnl; k++)
         if (fast_diode(x, k))
-            return k;
-    return -1;
+            return true;
+    return false;
 }
-
-static bool any_fast(Ctx *x) { return first_fast(x) >= 0; }
 
 /* C text of an elaborated expression over p[]. */
 static const char *cexpr(Ctx *x, const Expr *e) {
@@ -1184,16 +1181,6 @@ static const char *live_text(const Stmt *l, int n, Names *live) {
 
 static const char *sample_text(Ctx *x, Names *live) { return live_text(x->stmt, x->nstmt, live); }
 
-/* Each line of text one level (four spaces) deeper, into b. */
-static void indented(Buf *b, const char *text) {
-    for (const char *p = text; *p;) {
-        const char *e = strchr(p, '\n');
-        size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
-        emit(b, "    %.*s", (int)n, p);
-        p += n;
-    }
-}
-
 /* Each line of text `levels` levels (four spaces each) deeper. */
 static const char *deeper(const char *text, int levels) {
     Buf b = {0};
@@ -1249,7 +1236,7 @@ static const char *idle_text(Ctx *x, Names *live) {
     }
     Names lv = {0};
     Buf body = {0};
-    indented(&body, live_text(l, n, &lv));
+    emit(&body, "%s", deeper(live_text(l, n, &lv), 1));
     /* entering: each mass's last incident wave is its held one, as after
      * a sample of the full loop with the contact open */
     Buf open = {0}, hold = {0};
@@ -1327,6 +1314,8 @@ static void emit_hoist(Ctx *x) {
         local(x, format("s_wpre%d", k), format("    real s_wpre%d = st->s_wpre[%d];\n", k, k),
               format("    st->s_wpre[%d] = s_wpre%d;\n", k, k), NULL);
     local(x, "k_T", "    const double k_T = 1.0 / st->fs;\n", NULL, NULL);
+    if (any_fast(x))
+        local(x, "c_om", "    const double *const c_om = st->c_om;\n", NULL, NULL);
     for (int k = 0; k < x->nnl; k++) {
         local(x, format("k_Rn%d", k), format("    const real k_Rn%d = st->c_Rn[%d];\n", k, k), NULL, NULL);
         local(x, format("k_gn%d", k), format("    const real k_gn%d = %s / st->c_Rn[%d];\n", k, lit(x, 0.5), k), NULL,
@@ -1340,8 +1329,6 @@ static void emit_hoist(Ctx *x) {
             local(x, format("s_n%s%d", sn[j], k), format("    real s_n%s%d = st->s_n%s[%d];\n", sn[j], k, sn[j], k),
                   format("    st->s_n%s[%d] = s_n%s%d;\n", sn[j], k, sn[j], k),
                   format("        s_n%s%d = flush(s_n%s%d);\n", sn[j], k, sn[j], k));
-        if (fast_diode(x, k) && k == first_fast(x))
-            local(x, "c_om", "    const double *const c_om = st->c_om;\n", NULL, NULL);
         if (x->pwl_n[k]) {
             static const char *pn[] = {"a", "b", "s"};
             for (int j = 0; j < 3; j++)
@@ -2662,7 +2649,7 @@ static void decl_run(Buf *decl, Buf *wb, Buf *fl) {
     const char *body = str(fl);
     Buf b = {0};
     emit(&b, "        if (t_run == FLUSH_RUN) {\n            t_run = 0;\n");
-    indented(&b, body);
+    emit(&b, "%s", deeper(body, 1));
     emit(&b, "        }\n");
     *fl = b;
 }

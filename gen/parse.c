@@ -488,7 +488,6 @@ static void element(Parser *P, Line *l) {
     keyvals(P, l);
 }
 
-/* ref = WORD '(' WORD [',' WORD] ')' */
 /* SPICE's measures of the AC analysis, vdb(out) and such, which name a
  * signal v() or i(). */
 static bool ac_measure(const Token *t) {
@@ -499,6 +498,7 @@ static bool ac_measure(const Token *t) {
     return false;
 }
 
+/* ref = WORD '(' WORD [',' WORD] ')' */
 static Ref ref(Parser *P) {
     Token *t = P->tok;
     Ref r = {.pos = t->pos};
