@@ -1113,8 +1113,7 @@ static double fixed(const Expr *e) { return e && !has_names(e) ? expr_eval(e, NU
  * law (the usual symmetric clipper) are one antiparallel pair, whose
  * closed form (pair=1) gives the same answer as solving the two: the
  * first takes the second in.  Diodes that differ, or carry params, stay
- * two (and are refused together until several nonlinearities can share
- * a root). */
+ * two, which the root solves jointly. */
 static void pair_diodes(Elab *E) {
     int ne = E->elems.len, n = 0;
     bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));

@@ -12,7 +12,7 @@
 #include "solve.h"
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[], tmpl_nl_fast[],
-    tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
+    tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_g[], tmpl_nl_joint[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
     tmpl_lu[], tmpl_retune[], tmpl_root[], tmpl_nl_adapt[], tmpl_settle[], tmpl_params[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
@@ -176,6 +176,9 @@ typedef struct Ctx {
     Sym **msym;      /* root -> its matrix's entries as values of its straight-line solve */
     Sx **rsx;        /* root -> the values of its straight-line solve */
     int nM;          /* entries of all root matrices */
+    int *jq_off;     /* root -> its nonlinear edges' matrix in c_jQ (float voices, joint roots solved in straight
+                        lines), or -1 */
+    int njq;
     int nline;       /* transmission lines */
     int *line_of;    /* element -> its line, or -1 */
     int *dl_off;     /* element (a line's end) -> its buffer in s_dl */
@@ -262,7 +265,12 @@ static const Elem *nl_elem(Ctx *x, int k) {
     return &x->c->elems[x->w->roots[x->nl_root[k]].edge[x->nl_edge[k]].elem];
 }
 
-static Solver solver_of(Ctx *x, const NlSpec *nl) {
+/* The solver of nonlinear edge k: a joint root's own, else the element's
+ * choice, the command line's, or the default. */
+static Solver solver_of(Ctx *x, int k) {
+    const NlSpec *nl = nl_elem(x, k)->nl;
+    if (x->w->roots[x->nl_root[k]].joint)
+        return SOLVER_JOINT;
     return nl->solver != SOLVER_DEFAULT ? nl->solver : x->opt->solver != SOLVER_DEFAULT ? x->opt->solver
                                                                                       : SOLVER_FAST;
 }
@@ -270,11 +278,25 @@ static Solver solver_of(Ctx *x, const NlSpec *nl) {
 /* Nonlinear edge k is a diode (or pair) that diode_fast solves. */
 static bool fast_diode(Ctx *x, int k) {
     const NlSpec *nl = nl_elem(x, k)->nl;
-    return nl->kind == NL_DIODE && !nl->mutated && solver_of(x, nl) == SOLVER_FAST;
+    return nl->kind == NL_DIODE && !nl->mutated && solver_of(x, k) == SOLVER_FAST;
 }
 
 /* points of diode_fast's omega table: OM_N of templates/nl_fast.c.tmpl */
 #define OMEGA_TABLE 560
+
+/* The fixed port resistance of nonlinear edge k of joint root rb, as the
+ * voice stores it. */
+static double joint_R(Ctx *x, int rb, int k) {
+    double R = x->w->roots[rb].R[k];
+    return x->single ? (double)(float)R : R;
+}
+
+static bool any_joint(Ctx *x) {
+    for (int b = 0; b < x->w->nroots; b++)
+        if (x->w->roots[b].joint)
+            return true;
+    return false;
+}
 
 static bool any_fast(Ctx *x) {
     for (int k = 0; k < x->nnl; k++)
@@ -426,6 +448,9 @@ static void emit_update(Ctx *x, Buf *o) {
             emit(o, "        st->c_nl[%d] = (real)t_new;\n    }\n", 4 * k + j);
         }
     }
+    for (int b = 0; b < x->w->nroots; b++) /* fixed: their laws are solved jointly */
+        for (int k = 0; k < x->w->roots[b].nnl && x->w->roots[b].joint; k++)
+            emit(o, "    st->c_Rn[%d] = %s;\n", x->nl_first[b] + k, lit(x, joint_R(x, b, x->w->roots[b].nport + k)));
     for (int b = 0; b < x->w->nroots; b++) {
         if (!x->rfn[b])
             emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
@@ -770,7 +795,7 @@ static void emit_nl_solve(Ctx *x, int k) {
         put(x, NULL, "%s", str(&o));
         return;
     }
-    switch (solver_of(x, nl)) {
+    switch (solver_of(x, k)) {
     case SOLVER_PWL:
         emit(&o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
         break;
@@ -808,7 +833,7 @@ static bool *root_zeros(const Root *r) {
         for (int k = 0; k < r->nport; k++)
             R[k] = r->R[k] * (trial ? 0.61 : 1.37) * (1 + 0.173 * k);
         for (int k = r->nport; k < np; k++)
-            if (scatter_thevenin(r, R, k, &R[k]) != 0)
+            if (r->joint || scatter_thevenin(r, R, k, &R[k]) != 0)
                 R[k] = r->R[k];
         bool ok = scatter_root(r, R, M) == 0;
         for (int k = 0; k < ne; k++) {
@@ -836,9 +861,12 @@ static void root_static(Ctx *x, int rb) {
         if (r->edge[k].kind == EDGE_PORT)
             g[k] = sx_temp(sx, format("1.0 / %s", dbl(x, format("st->c_R[%d]", r->edge[k].node->id))));
 #define POT(p) ((p) >= 0 ? pot[p] : sym_k(0))
-    /* each nonlinear edge adapted first: the resistance the rest of the
-     * core presents to it, with its sources at rest */
-    for (int k = r->nport; k < r->nport + r->nnl; k++) {
+    /* a joint root's nonlinear edges keep the resistances wdf.c gave them */
+    for (int k = r->nport; k < r->nport + r->nnl && r->joint; k++)
+        g[k] = sym_k(1 / joint_R(x, rb, k));
+    /* else each nonlinear edge is adapted first: the resistance the rest
+     * of the core presents to it, with its sources at rest */
+    for (int k = r->nport; k < r->nport + r->nnl && !r->joint; k++) {
         Lin *L = lin_new(sx, r->ncore);
         for (int j = 0; j < ne; j++) {
             const RootEdge *e = &r->edge[j];
@@ -917,6 +945,17 @@ static void root_fns(Ctx *x, const Names *live) {
                 sx_stmt(sx, format("    st->c_M[%d] = (real)%s;\n", x->moff[rb] + i, sx_use(sx, x->msym[rb][i])));
                 code = true;
             }
+        /* a float voice's joint solve takes the root's rows of its
+         * nonlinear edges in double: rounded, they would lose the exact
+         * null space of diodes in series and leak current into the node
+         * between them, whose voltage only tiny currents decide */
+        for (int k = 0; k < r->nnl && x->jq_off[rb] >= 0; k++)
+            for (int j = 0; j < ne; j++) {
+                int i = (r->nport + k) * ne + j;
+                if (!x->mnum[rb][i])
+                    sx_stmt(sx, format("    st->c_jQ[%d] = %s;\n", x->jq_off[rb] + k * ne + j,
+                                       sx_use(sx, x->msym[rb][i])));
+            }
         if (!code)
             continue;
         Buf o = {0};
@@ -946,11 +985,130 @@ static void mterm(Ctx *x, Buf *t, int b, int k, int j, const char *in) {
         emit(t, "%s%s * %s", plus, lit(x, x->mval[b][k * ne + j]), in);
 }
 
+/* Entry M[k][j] of root b as C text: a number, or its local. */
+static const char *mcoef(Ctx *x, int b, int k, int j) {
+    const int ne = x->w->roots[b].nedge;
+    if (x->mzero[b][k * ne + j])
+        return "0";
+    if (!x->mnum[b] || !x->mnum[b][k * ne + j])
+        return format("m%d_%d_%d", b, k, j);
+    return format("%.17g", x->mval[b][k * ne + j]);
+}
+
+/* Union-find over a root's core nodes: the root of a's set. */
+static int uf_find(int *up, int a) {
+    while (up[a] != a)
+        a = up[a] = up[up[a]];
+    return a;
+}
+
+/* joint_solve's list of the floating groups of joint root b: the groups
+ * of core nodes that only nonlinear edges tie to the rest of the root
+ * (the reference's group excluded), each as its count of edges, then each
+ * edge with its side (see joint_float), and a 0 at the end; "" if none. */
+static const char *joint_groups(Ctx *x, int b) {
+    const Root *r = &x->w->roots[b];
+    int nc = r->ncore, *up = arena_alloc(sizeof(int) * (size_t)(nc + 1));
+    for (int v = 0; v <= nc; v++)
+        up[v] = v; /* nc: the reference */
+    for (int j = 0; j < r->nedge; j++) {
+        const RootEdge *e = &r->edge[j];
+        if (e->kind == EDGE_NL)
+            continue;
+        int p = uf_find(up, e->p >= 0 ? e->p : nc), q = uf_find(up, e->q >= 0 ? e->q : nc);
+        if (p != q)
+            up[p < q ? p : q] = p < q ? q : p; /* the reference stays its set's root */
+    }
+    Buf o = {0};
+    for (int grp = 0; grp < nc; grp++) {
+        if (uf_find(up, grp) != grp)
+            continue;
+        Buf t = {0};
+        int n = 0;
+        for (int k = 0; k < r->nnl; k++) {
+            const RootEdge *e = &r->edge[r->nport + k];
+            bool in_p = e->p >= 0 && uf_find(up, e->p) == grp, in_q = e->q >= 0 && uf_find(up, e->q) == grp;
+            if (in_p != in_q)
+                emit(&t, ", %d, %d", k, in_p ? 1 : -1);
+            n += in_p != in_q;
+        }
+        if (n)
+            emit(&o, "%d%s, ", n, str(&t));
+    }
+    return o.len ? format("%s0", str(&o)) : "";
+}
+
+/* The nonlinear edges of joint root b, solved together (joint_solve):
+ * what the root's other inputs send them, the root's matrix among them,
+ * their resistances and laws, from the last sample's voltages. */
+static void emit_joint(Ctx *x, int b) {
+    const Root *r = &x->w->roots[b];
+    const int m = r->nnl, g0 = x->nl_first[b];
+    Buf c = {0}, q = {0}, R = {0}, L = {0}, v = {0}, out = {0};
+    for (int k = 0; k < m; k++) {
+        const int ek = r->nport + k, g = g0 + k;
+        const Elem *e = nl_elem(x, g);
+        Buf t = {0};
+        for (int j = 0; j < r->nedge; j++) {
+            const char *in = root_in(x, b, j);
+            if (r->edge[j].kind == EDGE_NL || is_zero(in) || x->mzero[b][ek * r->nedge + j])
+                continue;
+            if (x->jq_off[b] >= 0 && !x->mnum[b][ek * r->nedge + j])
+                emit(&t, "%sst->c_jQ[%d] * %s", t.len ? " + " : "", x->jq_off[b] + k * r->nedge + j, dbl(x, in));
+            else
+                mterm(x, &t, b, ek, j, in);
+        }
+        const char *sep = k ? ", " : "";
+        emit(&c, "%s%s", sep, t.len ? dbl(x, format("(%s)", str(&t))) : "0");
+        for (int j = 0; j < m; j++) {
+            const char *qk = mcoef(x, b, ek, r->nport + j);
+            if (x->jq_off[b] >= 0 && !strcmp(qk, format("m%d_%d_%d", b, ek, r->nport + j)))
+                qk = format("st->c_jQ[%d]", x->jq_off[b] + k * r->nedge + r->nport + j);
+            emit(&q, "%s%s", k || j ? ", " : "", dbl(x, qk));
+        }
+        emit(&R, "%s%s", sep, dbl(x, format("k_Rn%d", g)));
+        if (e->nl->kind == NL_DIODE)
+            emit(&L, "%s{c_nl%d_0, c_nl%d_1, %d, 0, NULL, NULL}", sep, g, g, e->nl->pair);
+        else
+            emit(&L, "%s{0, 1, 0, %d, nl_v%d, nl_i%d}", sep, e->nl->npts, g, g);
+        emit(&v, "%s%s", sep, dbl(x, format("s_nv%d", g)));
+        emit(&out, "            s_nv%d = (real)t_jv%d[%d];\n", g, b, k);
+    }
+    Buf o = {0};
+    emit(&o, "        double t_jv%d[] = {%s}, t_ji%d[%d]; /* solved jointly:", b, str(&v), b, m);
+    for (int k = 0; k < m; k++) {
+        const Elem *e = nl_elem(x, g0 + k);
+        emit(&o, " %s (%s:%d:%d)%s", e->name, e->pos.file->path, e->pos.line, e->pos.col, k + 1 < m ? "," : "");
+    }
+    emit(&o, " */\n        {\n");
+    emit(&o, "            const double t_c[] = {%s};\n            const double t_Q[] = {%s};\n", str(&c), str(&q));
+    emit(&o, "            const double t_R[] = {%s};\n            const jlaw t_L[] = {%s};\n", str(&R), str(&L));
+    const char *grp = joint_groups(x, b);
+    if (*grp)
+        emit(&o, "            static const signed char t_g[] = {%s}; /* floating groups */\n", grp);
+    emit(&o, "            if (joint_solve(%d, t_Q, t_R, t_c, t_L, %s, t_jv%d, t_ji%d, %.17g, %d) < 0)\n"
+             "                st->s_miss++; /* not converged within the cap */\n", m, *grp ? "t_g" : "NULL", b, b,
+         x->opt->tol, x->opt->maxit);
+    emit(&o, "%s        }\n", str(&out));
+    put(x, NULL, "%s", str(&o));
+    /* the waves of each edge: b to the root, a for probes */
+    for (int k = 0; k < m; k++) {
+        const int g = g0 + k;
+        const char *R = dbl(x, format("k_Rn%d", g));
+        put(x, format("t_bn%d", g), "        const real t_bn%d = (real)(t_jv%d[%d] - %s * t_ji%d[%d]);\n", g, b, k,
+            R, b, k);
+        put(x, format("t_an%d", g), "        const real t_an%d = (real)(t_jv%d[%d] + %s * t_ji%d[%d]);\n", g, b, k,
+            R, b, k);
+    }
+}
+
 static void emit_root(Ctx *x, int b) {
     const Root *r = &x->w->roots[b];
     x->own = b, x->phase = 'r';
     put(x, NULL, "        /* root %d */\n", b);
-    for (int k = r->nport; k < r->nport + r->nnl; k++) {
+    if (r->joint)
+        emit_joint(x, b);
+    for (int k = r->nport; k < r->nport + r->nnl && !r->joint; k++) {
         Buf t = {0};
         for (int j = 0; j < r->nedge; j++) {
             const char *in = root_in(x, b, j);
@@ -1629,25 +1787,35 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
 
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
 
+/* The table PREFIX_vK[], PREFIX_iK[] of n points (V, A), under a comment
+ * saying what it is. */
+static void points_table(Buf *tables, const char *what, const char *prefix, int k, const double *v, const double *i,
+                         int n) {
+    Buf tv = {0}, ti = {0};
+    for (int j = 0; j < n; j++) {
+        emit(&tv, "%s%.17g", j ? ", " : "", v[j]);
+        emit(&ti, "%s%.17g", j ? ", " : "", i[j]);
+    }
+    emit(tables, "/* %s (V, A) */\nstatic const double %s_v%d[] = {%s};\nstatic const double %s_i%d[] = {%s};\n", what,
+         prefix, k, str(&tv), prefix, k, str(&ti));
+}
+
 static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *force) {
     bool newton = false, fast = false, omega = false, pwl = false, contact = false, memory = false, inductor = false,
-         capacitor = false;
+         capacitor = false, joint = false;
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
-        if (e->nl->mutated) {
+        if (solver_of(x, k) == SOLVER_JOINT) {
+            joint = true;
+            if (e->nl->kind == NL_CURVE)
+                points_table(tables, format("%s: its curve", e->name), "nl", k, e->nl->cv, e->nl->ci, e->nl->npts);
+        } else if (e->nl->mutated) {
             memory = true;
             inductor |= e->nl->mutated == 'L';
             capacitor |= e->nl->mutated == 'C';
-            if (e->nl->kind == NL_CURVE) {
-                Buf v = {0}, i = {0};
-                for (int j = 0; j < e->nl->npts; j++) {
-                    emit(&v, "%s%.17g", j ? ", " : "", e->nl->cv[j]);
-                    emit(&i, "%s%.17g", j ? ", " : "", e->nl->ci[j]);
-                }
-                emit(tables, "/* %s: its inner resistor's curve (V, A) */\n", e->name);
-                emit(tables, "static const double mem_v%d[] = {%s};\nstatic const double mem_i%d[] = {%s};\n", k,
-                     str(&v), k, str(&i));
-            }
+            if (e->nl->kind == NL_CURVE)
+                points_table(tables, format("%s: its inner resistor's curve", e->name), "mem", k, e->nl->cv,
+                             e->nl->ci, e->nl->npts);
             if (e->nl->mutated == 'L')
                 emit(force, "    if (k == %d) { %sdouble d; return mem_g(st->s_nX[%d], %s, &d); }\n", k,
                      mem_locals(k, e->nl), k, mem_args(k, e->nl));
@@ -1657,24 +1825,18 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
                  k, el_law_init(k, e->nl, false), k, 4 * k + 3);
         } else if (x->pwl_n[k]) {
             pwl = true;
-            Buf v = {0}, i = {0};
-            for (int j = 0; j < x->pwl_n[k]; j++) {
-                emit(&v, "%s%.17g", j ? ", " : "", x->pwl_v[k][j]);
-                emit(&i, "%s%.17g", j ? ", " : "", x->pwl_i[k][j]);
-            }
-            emit(tables, "/* %s: Kirchhoff points of its piecewise-linear map (V, A) */\n", e->name);
-            emit(tables, "static const double nl_v%d[] = {%s};\nstatic const double nl_i%d[] = {%s};\n", k, str(&v),
-                 k, str(&i));
+            points_table(tables, format("%s: Kirchhoff points of its piecewise-linear map", e->name), "nl", k,
+                         x->pwl_v[k], x->pwl_i[k], x->pwl_n[k]);
             emit(retune, "    pwl_table(nl_v%d, nl_i%d, %d, st->c_Rn[%d], st->c_pa + %d, st->c_pb + %d, st->c_ps + %d);\n",
                  k, k, x->pwl_n[k], k, x->pwl_off[k], x->pwl_off[k], x->pwl_off[k]);
         } else {
-            Solver s = solver_of(x, e->nl);
+            Solver s = solver_of(x, k);
             omega |= s == SOLVER_OMEGA;
             fast |= s == SOLVER_FAST;
             newton |= s == SOLVER_NEWTON || s == SOLVER_OMEGA; /* omega finishes a pair by Newton */
         }
     }
-    if (newton || memory)
+    if (newton || memory || joint)
         emit(kernels, "%s", tmpl_nl_diode_i);
     if (newton || fast)
         emit(kernels, "%s", tmpl_nl_wright);
@@ -1686,8 +1848,12 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
         emit(kernels, "%s", tmpl_nl_fast);
     if (pwl)
         emit(kernels, "%s", tmpl_nl_pwl);
+    if (memory || joint)
+        emit(kernels, "%s", tmpl_nl_g);
     if (memory)
         emit(kernels, "%s", tmpl_nl_memory);
+    if (joint)
+        emit(kernels, "%s", tmpl_nl_joint);
     if (contact || memory)
         emit(kernels, "%s", tmpl_nl_law);
     if (contact || inductor)
@@ -2070,6 +2236,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "c_R", x->w->nnodes, "port resistance of each tree node");
     field(&b, r, "c_k", x->nk, "adaptor coefficients");
     field(&b, r, "c_M", x->nM, "root adaptor matrix");
+    field(&b, "double", "c_jQ", x->njq, "joint roots: the rows of their nonlinear edges, in double");
     field(&b, r, "c_e", nctl ? x->nsrc : 0, "control-rate source drives");
     field(&b, r, "s_a", x->nreact, "reactances: last incident wave");
     field(&b, r, "s_b", x->nreact, "reactances: last reflected wave");
@@ -2092,6 +2259,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "s_dl", x->ndl, "transmission lines: the waves that entered each end");
     scalar(&b, x->nline || nw, "unsigned s_pos;", "delays: next write position");
     scalar(&b, x->flushes, "unsigned s_run;", "samples since the states were last flushed");
+    scalar(&b, any_joint(x), "unsigned long s_miss;", "joint solves that reached the iteration cap");
     field(&b, "unsigned", "c_D", x->nline, "transmission lines: delay in samples");
     field(&b, r, "s_wv", W1(x->nwv), "waveguides: right- and left-going lines");
     field(&b, "unsigned", "c_wN", W1(2 * nw), "waveguides: whole samples of each line");
@@ -2214,6 +2382,14 @@ static void index_tree(Ctx *x) {
         if (!x->rfn[b])
             x->mzero[b] = root_zeros(&w->roots[b]);
     }
+    x->jq_off = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
+    for (int b = 0; b < w->nroots; b++) {
+        x->jq_off[b] = -1;
+        if (x->single && w->roots[b].joint && x->rfn[b]) {
+            x->jq_off[b] = x->njq;
+            x->njq += w->roots[b].nnl * w->roots[b].nedge;
+        }
+    }
     x->nl_root = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
     x->nl_edge = arena_alloc(sizeof(int) * (size_t)(x->nnl + 1));
     for (int b = 0; b < w->nroots; b++)
@@ -2227,7 +2403,7 @@ static void index_tree(Ctx *x) {
     x->pwl_i = arena_alloc(sizeof(double *) * (size_t)(x->nnl + 1));
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
-        if (e->nl->kind == NL_CONTACT || solver_of(x, e->nl) != SOLVER_PWL)
+        if (e->nl->kind == NL_CONTACT || solver_of(x, k) != SOLVER_PWL)
             continue;
         pwl_points(x, e, k);
         x->pwl_off[k] = x->npwl;
@@ -2420,6 +2596,8 @@ static const char *clears(Ctx *x) {
         emit(&b, "    st->s_pos = 0;\n");
     if (x->flushes)
         emit(&b, "    st->s_run = 0;\n");
+    if (any_joint(x))
+        emit(&b, "    st->s_miss = 0;\n");
     if (x->energy && x->nsrc)
         emit(&b, "    st->s_work = 0;\n");
     return str(&b);
@@ -2683,6 +2861,9 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     set(t, "writeback", str(&wb));
     set(t, "batch", x->opt->batch ? batch_text(x, dirty, sample) : "");
     set(t, "batch_entry", x->opt->batch ? "voice_process_batch" : "NULL");
+    set(t, "unsolved", any_joint(x) ? "static unsigned long voice_unsolved(const void *vst) {\n"
+                                      "    return ((const state *)vst)->s_miss;\n}\n\n" : "");
+    set(t, "unsolved_entry", any_joint(x) ? "voice_unsolved" : "NULL");
 }
 
 /* reset and set_ic: what they set before settle (`rest`: initial values;

@@ -341,6 +341,7 @@ typedef enum {
     SOLVER_NEWTON,  /* damped, bracketed Newton with a hard iteration cap */
     SOLVER_OMEGA,   /* Wright omega closed form (diodes) */
     SOLVER_FAST,    /* tabulated omega predictor, Halley steps on the exact law (diodes' default) */
+    SOLVER_JOINT,   /* several at one root: damped Newton on their joint equations (not a choice) */
 } Solver;
 
 /* A nonlinear element.  Its current flows from n0 to n1 through it. */
@@ -577,6 +578,9 @@ typedef struct RootEdge {
     int p, q;   /* core node indices (-1: the reference node) */
 } RootEdge;
 
+/* Nonlinear elements one root solves jointly, at most. */
+#define WD_JOINT_MAX 8
+
 typedef struct Root {
     int ncore;         /* core nodes, the reference excluded */
     int *core_node;    /* graph node of each core index */
@@ -584,7 +588,8 @@ typedef struct Root {
     RootEdge *edge;
     int nedge;
     int nport;         /* ports first in edge[], then nonlinear edges, then sources */
-    int nnl;           /* nonlinear edges (at most one) */
+    int nnl;           /* nonlinear edges */
+    bool joint;        /* nnl > 1: solved jointly, their resistances fixed */
     int nv;            /* ideal voltage sources among the edges */
     double *R;         /* port resistance of each port and nonlinear edge */
     /* M (nedge x nedge, row-major): outputs [a of each port and

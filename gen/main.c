@@ -590,6 +590,10 @@ static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, voi
         }
         pos = end;
     }
+    unsigned long miss = cls->unsolved ? cls->unsolved(st) : 0;
+    if (miss)
+        fprintf(stderr, "wdc: warning: at %lu of %ld samples the joint solve of the nonlinear elements stopped "
+                "at its cap of %d iterations before it converged (raise --maxit)\n", miss, n, o->maxit);
     return 0;
 }
 

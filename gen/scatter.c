@@ -235,7 +235,7 @@ static double root_check(const Root *r, double tol) {
     double res = tableau_residual(r, r->M);
     if (!(res <= bound * fmax(scale, 1) * 1e3))
         die("the root's matrix does not satisfy its tableau of Kirchhoff's laws (residual %g)", res);
-    for (int k = r->nport; k < np; k++)
+    for (int k = r->nport; k < np && !r->joint; k++) /* a joint root's are not */
         if (fabs(S[k * np + k]) > tol)
             die("nonlinear edge %d of the root is not adapted (S = %g)", k, S[k * np + k]);
     return err;

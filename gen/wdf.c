@@ -336,31 +336,46 @@ static void reduce(Edge *E, int ne, const int *gl, int nl, const int *loc) {
     }
 }
 
-/* One nonlinear element per root: several need a delay between them. */
-static void check_nonlinear(Wdf *wd, const Root *r) {
+/* Nonlinear elements solved jointly at one root: memoryless laws (diodes,
+ * pairs, curves), at most WD_JOINT_MAX of them.  Contacts and the laws
+ * behind a mutator store energy and step passively, each alone: a delay
+ * must part them from any other. */
+static bool joins(const Elem *e) { return (e->nl->kind == NL_DIODE || e->nl->kind == NL_CURVE) && !e->nl->mutated; }
+
+static void check_nonlinear(Wdf *wd, Root *r) {
     if (r->nnl <= 1)
         return;
-    const Elem *first = &wd->c->elems[r->edge[r->nport].elem];
-    const Elem *second = &wd->c->elems[r->edge[r->nport + 1].elem];
-    bool facing = first->nl->kind == NL_DIODE && second->nl->kind == NL_DIODE && first->n[0] == second->n[1] &&
-                  first->n[1] == second->n[0];
-    error_begin(second->pos, "'%s' and '%s' are coupled with no delay between them: each instantaneously "
-                "coupled part may hold one nonlinear element; a delay element between them (a transmission "
-                "line, string or tube) would decouple them%s", first->name, second->name,
-                facing ? " (two facing diodes with one law are taken as one antiparallel pair, pair=1; these "
-                         "differ)" : "");
+    int bad = -1;
+    for (int k = r->nport; k < r->nport + r->nnl && bad < 0; k++)
+        if (!joins(&wd->c->elems[r->edge[k].elem]))
+            bad = k;
+    if (bad < 0 && r->nnl <= WD_JOINT_MAX) {
+        r->joint = true;
+        return;
+    }
+    int other = bad == r->nport ? r->nport + 1 : r->nport;
+    if (bad < 0)
+        other = r->nport, bad = r->nport + WD_JOINT_MAX;
+    const Elem *first = &wd->c->elems[r->edge[other].elem];
+    const Elem *second = &wd->c->elems[r->edge[bad].elem];
+    if (r->nnl > WD_JOINT_MAX)
+        error_begin(second->pos, "'%s' makes %d nonlinear elements coupled with no delay between them: at most %d "
+                    "are solved jointly; a delay element (a transmission line, string or tube) would part them",
+                    second->name, r->nnl, WD_JOINT_MAX);
+    else
+        error_begin(second->pos, "%s '%s' is coupled to '%s' with no delay between them: a %s stores energy and "
+                    "is solved alone, so a delay element (a transmission line, string or tube) must part it from "
+                    "other nonlinear elements", block_desc[second->user_kind].desc, second->name, first->name,
+                    second->nl->kind == NL_CONTACT ? "contact" : "nonlinear reactance");
     note_at(first->pos, "'%s' is here", first->name);
-    for (int k = r->nport + 2; k < r->nport + r->nnl; k++)
-        note_at(wd->c->elems[r->edge[k].elem].pos, "'%s', coupled to them too, is here",
-                wd->c->elems[r->edge[k].elem].name);
     error_end();
 }
 
 /* Gives nonlinear edge k the resistance the rest of the core presents to
- * it, so that the wave the root sends it does not depend on its own. */
+ * it, so that the wave the root sends it does not depend on its own.  At a
+ * joint root the others count at their present resistances. */
 static void adapt_nonlinear(Wdf *wd, Root *r, int k) {
     const Elem *e = &wd->c->elems[r->edge[k].elem];
-    r->R[k] = 1; /* unused by the solve, which leaves edge k out */
     double Rth;
     if (scatter_thevenin(r, r->R, k, &Rth) < 0 || !(Rth < 1e300))
         error_at(e->pos, "%s '%s' has no closed path through the rest of the network: no current can flow "
@@ -369,6 +384,29 @@ static void adapt_nonlinear(Wdf *wd, Root *r, int k) {
         error_at(e->pos, "%s '%s' sits directly across an ideal source: nothing limits its current "
                  "(put a resistance in series)", block_desc[e->user_kind].desc, e->name);
     r->R[k] = Rth;
+}
+
+/* The port resistances of a root's nonlinear edges.  One edge is adapted
+ * (its resistance follows the ports').  At a joint root they are fixed
+ * here: each starts at the ports' geometric mean and is adapted to the
+ * rest, the others included, in three sweeps; the joint solve's answer does
+ * not depend on them, only its conditioning. */
+static void adapt_root(Wdf *wd, Root *r) {
+    int k0 = r->nport, k1 = r->nport + r->nnl;
+    if (!r->joint) {
+        for (int k = k0; k < k1; k++)
+            adapt_nonlinear(wd, r, k);
+        return;
+    }
+    double lg = 0;
+    for (int i = 0; i < r->nport; i++)
+        lg += log(r->R[i]);
+    double R0 = r->nport ? exp(lg / r->nport) : 1;
+    for (int k = k0; k < k1; k++)
+        r->R[k] = R0;
+    for (int sweep = 0; sweep < 3; sweep++)
+        for (int k = k0; k < k1; k++)
+            adapt_nonlinear(wd, r, k);
 }
 
 static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl, const int *loc) {
@@ -427,8 +465,7 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl,
     double *R = r->R = arena_alloc(sizeof(double) * (size_t)(r->nport + r->nnl + 1));
     for (int i = 0; i < r->nport; i++)
         R[i] = r->edge[i].node->R;
-    for (int i = r->nport; i < r->nport + r->nnl; i++)
-        adapt_nonlinear(wd, r, i);
+    adapt_root(wd, r);
     bool singular = scatter_root(r, R, r->M) < 0;
     if (singular && r->nedge == r->nport + r->nnl)
         error_at(c->elems[0].pos, "the network's equations are singular: its element values span too wide a "
@@ -747,8 +784,8 @@ static void dump_node(const Wdf *w, WNode *top, FILE *out) {
 void wdf_dump(const Wdf *w, FILE *out) {
     for (int b = 0; b < w->nroots; b++) {
         const Root *r = &w->roots[b];
-        fprintf(out, "root %d: %d ports, %d nonlinear, %d ideal sources, %d core nodes\n", b, r->nport, r->nnl,
-                r->nedge - r->nport - r->nnl, r->ncore);
+        fprintf(out, "root %d: %d ports, %d nonlinear%s, %d ideal sources, %d core nodes\n", b, r->nport, r->nnl,
+                r->joint ? " (solved jointly)" : "", r->nedge - r->nport - r->nnl, r->ncore);
         for (int i = 0; i < r->nedge; i++) {
             if (r->edge[i].kind == EDGE_PORT)
                 dump_node(w, r->edge[i].node, out);

@@ -176,7 +176,7 @@ static const wdv_class tap_class = {"body",    WDV_ABI_VERSION, 64,           si
                                     1,         0,               0,            NULL,              tap_out,
                                     NULL,      NULL,            tap_init,     tap_reset,         tap_set_param,
                                     tap_get_param, tap_process, tap_energy,   tap_work,          tap_set_ic,
-                                    0,         NULL,            NULL,         NULL};
+                                    0,         NULL,            NULL,         NULL,              NULL};
 
 /* ---- set-up ---- */
 

@@ -233,7 +233,7 @@ static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *li
     if (!root || !*root)
         root = "out/cache";
     hash h = {0xcbf29ce484222325ull};
-    hash_bytes(&h, "wdrt-voice-2", 12); /* the version of how a voice is built here */
+    hash_bytes(&h, "wdrt-voice-3", 12); /* the version of how a voice is built here */
     if (hash_netlist(&h, netlist, 0) != 0) {
         fprintf(stderr, "wdrt: error: cannot read netlist '%s': %s\n", netlist, strerror(errno));
         return EXIT_INPUT;

@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 4
+#define WDV_ABI_VERSION 5
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -115,6 +115,11 @@ typedef struct wdv_class {
      * `wdc --batch`): the host calls process for each instance. */
     void (*process_batch)(void *const *states, int n, const double *const *const *in,
                           double *const *const *out, int nframes);
+    /* Samples since reset at which a joint solve (nonlinear elements
+     * coupled with no delay between them) stopped at its iteration cap
+     * (wdc --maxit) before it converged: the output there comes from its
+     * last iterate.  NULL: the voice has no joint solve. */
+    unsigned long (*unsolved)(const void *state);
 } wdv_class;
 
 #endif

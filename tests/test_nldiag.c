@@ -29,11 +29,20 @@ static void expect(const char *text, const char *want) {
 
 static void test_coupled_nonlinearities(void **s) {
     (void)s;
-    /* two diodes with no delay between them: refused, naming both */
-    expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nR2 a b 1k\nD2 b 0 dd\n",
-           "t.wdn:6:1: error: 'D1' and 'D2' are coupled with no delay between them: each instantaneously "
-           "coupled part may hold one nonlinear element; a delay element between them (a transmission line, "
-           "string or tube) would decouple them");
+    /* two diodes with no delay between them: solved jointly */
+    expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nR2 a b 1k\nD2 b 0 dd\n", "");
+    /* a contact stores energy: it is solved alone, so a diode or curve
+     * coupled to it is refused at the contact, naming the other */
+    expect(".domain mechanical\n.input f\nforce F1 a 0 f\nmass M1 a m=10m\ncontact K1 a b k=1e6 alpha=1.5\n"
+           "mass M2 b m=20m\nspring S2 b 0 k=1k\nnlres N1 a b curve=(-1:-1 1:1)\n",
+           "t.wdn:5:9: error: contact 'K1' is coupled to 'N1' with no delay between them: a contact stores "
+           "energy and is solved alone, so a delay element (a transmission line, string or tube) must part it "
+           "from other nonlinear elements");
+    /* more than WD_JOINT_MAX at one root: refused at the first past it */
+    expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nD2 a 0 dd\nD3 a 0 dd\nD4 a 0 dd\nD5 a 0 dd\n"
+           "D6 a 0 dd\nD7 a 0 dd\nD8 a 0 dd\nD9 a 0 dd\n",
+           "t.wdn:12:1: error: 'D9' makes 9 nonlinear elements coupled with no delay between them: at most 8 are "
+           "solved jointly; a delay element (a transmission line, string or tube) would part them");
     /* a line between them decouples: accepted */
     expect(".input in\n" MODEL "V1 a 0 in R=1k\nD1 a 0 dd\nT1 a 0 b 0 Z0=100 TD=1m\nR2 b 0 1k\nD2 b 0 dd\n", "");
     /* sharing only ground is no coupling either */
