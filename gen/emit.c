@@ -1086,9 +1086,11 @@ static void emit_joint(Ctx *x, int b) {
     const char *grp = joint_groups(x, b);
     if (*grp)
         emit(&o, "            static const signed char t_g[] = {%s}; /* floating groups */\n", grp);
-    emit(&o, "            if (joint_solve(%d, t_Q, t_R, t_c, t_L, %s, t_jv%d, t_ji%d, %.17g, %d) < 0)\n"
-             "                st->s_miss++; /* not converged within the cap */\n", m, *grp ? "t_g" : "NULL", b, b,
-         x->opt->tol, x->opt->maxit);
+    emit(&o, "            const int t_n = joint_solve(%d, t_Q, t_R, t_c, t_L, %s, t_jv%d, t_ji%d, %.17g, %d);\n"
+             "            st->s_js[0]++;\n"
+             "            st->s_js[1] += (unsigned long)(t_n < 0 ? %d : t_n);\n"
+             "            st->s_js[2] += t_n < 0; /* not converged within the cap */\n",
+         m, *grp ? "t_g" : "NULL", b, b, x->opt->tol, x->opt->maxit, x->opt->maxit);
     emit(&o, "%s        }\n", str(&out));
     put(x, NULL, "%s", str(&o));
     /* the waves of each edge: b to the root, a for probes */
@@ -2259,7 +2261,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "s_dl", x->ndl, "transmission lines: the waves that entered each end");
     scalar(&b, x->nline || nw, "unsigned s_pos;", "delays: next write position");
     scalar(&b, x->flushes, "unsigned s_run;", "samples since the states were last flushed");
-    scalar(&b, any_joint(x), "unsigned long s_miss;", "joint solves that reached the iteration cap");
+    field(&b, "unsigned long", "s_js", any_joint(x) ? 3 : 0, "joint solves, their Newton steps, those capped");
     field(&b, "unsigned", "c_D", x->nline, "transmission lines: delay in samples");
     field(&b, r, "s_wv", W1(x->nwv), "waveguides: right- and left-going lines");
     field(&b, "unsigned", "c_wN", W1(2 * nw), "waveguides: whole samples of each line");
@@ -2597,7 +2599,7 @@ static const char *clears(Ctx *x) {
     if (x->flushes)
         emit(&b, "    st->s_run = 0;\n");
     if (any_joint(x))
-        emit(&b, "    st->s_miss = 0;\n");
+        emit(&b, "    memset(st->s_js, 0, sizeof st->s_js);\n");
     if (x->energy && x->nsrc)
         emit(&b, "    st->s_work = 0;\n");
     return str(&b);
@@ -2861,9 +2863,10 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     set(t, "writeback", str(&wb));
     set(t, "batch", x->opt->batch ? batch_text(x, dirty, sample) : "");
     set(t, "batch_entry", x->opt->batch ? "voice_process_batch" : "NULL");
-    set(t, "unsolved", any_joint(x) ? "static unsigned long voice_unsolved(const void *vst) {\n"
-                                      "    return ((const state *)vst)->s_miss;\n}\n\n" : "");
-    set(t, "unsolved_entry", any_joint(x) ? "voice_unsolved" : "NULL");
+    set(t, "solve_stats", any_joint(x) ? "static void voice_solve_stats(const void *vst, unsigned long stats[WDV_SOLVE_N]) {\n"
+                                         "    for (int k = 0; k < WDV_SOLVE_N; k++)\n"
+                                         "        stats[k] = ((const state *)vst)->s_js[k];\n}\n\n" : "");
+    set(t, "solve_stats_entry", any_joint(x) ? "voice_solve_stats" : "NULL");
 }
 
 /* reset and set_ic: what they set before settle (`rest`: initial values;

@@ -590,10 +590,13 @@ static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, voi
         }
         pos = end;
     }
-    unsigned long miss = cls->unsolved ? cls->unsolved(st) : 0;
-    if (miss)
-        fprintf(stderr, "wdc: warning: at %lu of %ld samples the joint solve of the nonlinear elements stopped "
-                "at its cap of %d iterations before it converged (raise --maxit)\n", miss, n, o->maxit);
+    unsigned long js[WDV_SOLVE_N] = {0};
+    if (cls->solve_stats)
+        cls->solve_stats(st, js);
+    if (js[WDV_SOLVE_CAPPED])
+        fprintf(stderr, "wdc: warning: %lu of %lu joint solves of the nonlinear elements stopped at the cap of %d "
+                "iterations before they converged (raise --maxit)\n", js[WDV_SOLVE_CAPPED], js[WDV_SOLVE_SOLVES],
+                o->maxit);
     return 0;
 }
 

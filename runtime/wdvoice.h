@@ -51,6 +51,9 @@ typedef struct wdv_ic_target {
     const char *unit;
 } wdv_ic_target;
 
+/* The entries of wdv_class.solve_stats. */
+enum { WDV_SOLVE_SOLVES, WDV_SOLVE_STEPS, WDV_SOLVE_CAPPED, WDV_SOLVE_N };
+
 typedef struct wdv_class {
     const char *name;   /* voice name: the C prefix of its symbols */
     int abi_version;    /* WDV_ABI_VERSION at emission */
@@ -115,11 +118,12 @@ typedef struct wdv_class {
      * `wdc --batch`): the host calls process for each instance. */
     void (*process_batch)(void *const *states, int n, const double *const *const *in,
                           double *const *const *out, int nframes);
-    /* Samples since reset at which a joint solve (nonlinear elements
-     * coupled with no delay between them) stopped at its iteration cap
-     * (wdc --maxit) before it converged: the output there comes from its
+    /* How the joint solves (nonlinear elements coupled with no delay
+     * between them, WDV_SOLVE_*) have gone since reset: the solves, the
+     * Newton steps they took, and those that stopped at the iteration cap
+     * (wdc --maxit) before they converged, whose samples come from their
      * last iterate.  NULL: the voice has no joint solve. */
-    unsigned long (*unsolved)(const void *state);
+    void (*solve_stats)(const void *state, unsigned long stats[WDV_SOLVE_N]);
 } wdv_class;
 
 #endif

@@ -3,7 +3,8 @@
  * a batch are the instances they stand for, bit for bit.
  *
  * For every example netlist (netlists/ *.wdn, tl_run_per_netlist) and the
- * test networks with idle hammers, in double and in float: LANES
+ * test networks with idle hammers and the diode decks (one with its pair,
+ * two whose diodes are solved jointly), in double and in float: LANES
  * instances (not a multiple of the voice's lanes of 8, so that the last
  * group is partly filled) each get their own param values, drawn in their
  * ranges, their own strikes (set_ic with random targets and values; a
@@ -191,8 +192,9 @@ static void test_opt_in(void **state) {
 static void test_hammers(void **state) {
     (void)state;
     static const char *const nets[] = {"tests/nets/hammers_eight.wdn", "tests/nets/idle_with.wdn",
-                                       "netlists/clipper_sym.cir"};
-    for (int k = 0; k < 3; k++) {
+                                       "netlists/clipper_sym.cir", "netlists/clipper_asym.cir",
+                                       "netlists/bridge.cir"};
+    for (int k = 0; k < 5; k++) {
         lanes_same(nets[k], 0, 0);
         lanes_same(nets[k], 1, 0);
     }

@@ -5,8 +5,10 @@
  * Each network below holds two to four diodes, pairs or curves that
  * share one root: an asymmetric clipper (two diodes in series facing a
  * third), two facing diodes with different laws, a bridge rectifier into
- * a smoothing capacitor, a diode in series with a curve, a pair beside a
- * diode, and a clipper whose diodes carry a param.  Each is driven at 48
+ * a smoothing capacitor whose load floats, a diode in series with a
+ * curve, a pair beside a diode, a clipper whose diodes carry a param, and
+ * the example decks netlists/clipper_asym.cir and netlists/bridge.cir
+ * (driven through their sources' inputs).  Each is driven at 48
  * and 192 kHz by sines of 1 V and 10 V, 1 V white noise and random steps
  * up to 10 V (held 1 to 8 samples: diodes switch between conduction and
  * reverse from one sample to the next), and compared with refsim
@@ -17,7 +19,8 @@
  *     reference (largest error over the reference's peak);
  *   - float voices: within FLOAT_FACTOR times what rounding the
  *     reference's state to float alone costs on the same run;
- *   - no sample stops at the iteration cap (wdv_class.unsolved reads 0),
+ *   - no sample stops at the iteration cap (wdv_class.solve_stats; the
+ *     table gives the double voice's Newton steps a solve),
  *     and a voice compiled with --maxit 1 does count the samples it
  *     could not finish, and wdc --render warns of them.
  * The refusals: a contact coupled to a diode (it stores energy and is
@@ -50,30 +53,40 @@ typedef struct net {
      * potential, which leakage alone decides, and may stop at its cap
      * there; the outputs do not see it */
     int floating;
+    const char *path; /* an example deck instead of text */
+    /* its float voice is not held to the float floor: the bridge deck's
+     * reservoir (470u at 10 V) loses about 1e-5 of its charge a sample at
+     * 192 kHz, close to float's resolution, so any float voice of it is
+     * off by about -40 dB however it solves its diodes (refsim's rounded
+     * state shows as much at 48 kHz); its double voice is held to
+     * JOINT_TOL_DB as the others are */
+    int float_limited;
 } net;
 
 static const net nets[] = {
     {"asym",
      ".input in\nV1 b 0 in R=2.2k\nC1 b 0 10n\n.model dm diode Is=2.52n n=1.752\n.model dn diode Is=1n\n"
-     "D1 b c dm\nD2 c 0 dm\nD3 0 b dn\n.output o v(b)\n.output m v(c)\n", 0},
+     "D1 b c dm\nD2 c 0 dm\nD3 0 b dn\n.output o v(b)\n.output m v(c)\n", 0, NULL, 0},
     {"facing",
      ".input in\nV1 b 0 in R=1k\nC1 b 0 47n\n.model da diode Is=2.52n n=1.752\n.model db diode Is=10f n=1.2\n"
-     "D1 b 0 da\nD2 0 b db\n.output o v(b)\n", 0},
+     "D1 b 0 da\nD2 0 b db\n.output o v(b)\n", 0, NULL, 0},
     {"bridge",
      ".input in\nV1 a 0 in R=10\nR2 a x 1\n.model dr diode Is=14n n=1.9\n"
      "D1 x p dr\nD2 0 p dr\nD3 n x dr\nD4 n 0 dr\nC1 p n 100u\nRL p n 1k\n"
      ".output dc v(p,n)\n.output iin i(V1)\n",
-     1},
+     1, NULL, 0},
     {"curve",
      ".input in\nV1 b 0 in R=1k\nC1 b 0 22n\n.model ds diode Is=1p n=1.5\n"
      "D1 b c ds\nnlres N1 c 0 curve=(-2:-0.004 -0.5:-0.0002 0:0 0.3:0.0001 1:0.003 3:0.02)\n"
-     "R3 c 0 100k\n.output o v(b)\n.output m v(c)\n", 0},
+     "R3 c 0 100k\n.output o v(b)\n.output m v(c)\n", 0, NULL, 0},
     {"pairdiode",
      ".input in\nV1 b 0 in R=4.7k\nC1 b 0 4.7n\n.model dp diode Is=2.52n n=1.752 pair=1\n.model dq diode Is=5n n=2\n"
-     "D1 b 0 dp\nR2 b c 1k\nD2 c 0 dq\nC2 c 0 1n\nD3 b c dq\n.output o v(b)\n.output q v(c)\n", 0},
+     "D1 b 0 dp\nR2 b c 1k\nD2 c 0 dq\nC2 c 0 1n\nD3 b c dq\n.output o v(b)\n.output q v(c)\n", 0, NULL, 0},
     {"param",
      ".input in\n.param is 2.52n min=1p max=1u\n.param rs 2.2k min=100 max=100k\nV1 b 0 in R={rs}\nC1 b 0 10n\n"
-     ".model dm diode Is={is} n=1.752\n.model dn diode Is=1n\nD1 b c dm\nD2 c 0 dm\nD3 0 b dn\n.output o v(b)\n", 0},
+     ".model dm diode Is={is} n=1.752\n.model dn diode Is=1n\nD1 b c dm\nD2 c 0 dm\nD3 0 b dn\n.output o v(b)\n", 0, NULL, 0},
+    {"asym.cir", NULL, 0, "netlists/clipper_asym.cir", 0},
+    {"bridge.cir", NULL, 1, "netlists/bridge.cir", 1},
 };
 #define NNETS ((int)(sizeof nets / sizeof nets[0]))
 
@@ -101,6 +114,10 @@ static void make_drive(drive_kind d, double fs, long n, uint64_t seed, double *x
 
 static const char *write_net(const net *t, char *path, size_t cap) {
     static char dir[64];
+    if (t->path) {
+        snprintf(path, cap, "%s", t->path);
+        return path;
+    }
     if (!dir[0])
         assert_int_equal(tl_temp_dir(dir, "joint"), 0);
     char name[64];
@@ -123,7 +140,7 @@ static double err_db(const double *a, const double *b, long n) {
  * precision) over the drive; out: the worst error in dB over the outputs,
  * and the rounded reference's (the floor). */
 static void run_pair(const Circuit *c, const wdv_class *cls, double fs, const double *x, long n, int floating,
-                     double *db, double *floor_db, unsigned long *miss) {
+                     double *db, double *floor_db, unsigned long *miss, double *steps) {
     void *st = tl_state_new(cls, fs);
     assert_non_null(st);
     refsim *rs = refsim_new(c, fs, NULL), *rf = refsim_new(c, fs, NULL);
@@ -164,8 +181,12 @@ static void run_pair(const Circuit *c, const wdv_class *cls, double fs, const do
         *db = fmax(*db, err_db(vo[j], ro[j], n));
         *floor_db = fmax(*floor_db, err_db(fo[j], ro[j], n));
     }
-    assert_non_null(cls->unsolved);
-    *miss = cls->unsolved(st);
+    assert_non_null(cls->solve_stats);
+    unsigned long js[WDV_SOLVE_N];
+    cls->solve_stats(st, js);
+    *miss = js[WDV_SOLVE_CAPPED];
+    *steps = (double)js[WDV_SOLVE_STEPS] / (double)js[WDV_SOLVE_SOLVES];
+    assert_true(js[WDV_SOLVE_SOLVES] == (unsigned long)n);
     refsim_nl_info info;
     refsim_nl_stats(rs, &info);
     if (info.unconverged && !floating)
@@ -183,8 +204,8 @@ static void test_joint_accuracy(void **state) {
     (void)state;
     int failed = 0;
     double worst = -400, worst_f = -400;
-    print_message("%-10s %-11s %7s %10s %10s %10s %10s\n", "network", "drive", "rate", "double dB", "floor",
-                  "float dB", "floor");
+    print_message("%-10s %-11s %7s %10s %10s %10s %10s %6s\n", "network", "drive", "rate", "double dB", "floor",
+                  "float dB", "floor", "steps");
     for (int t = 0; t < NNETS; t++) {
         char path[256];
         write_net(&nets[t], path, sizeof path);
@@ -212,20 +233,22 @@ static void test_joint_accuracy(void **state) {
                     if (df)
                         fclose(df);
                 }
-                double db, dbf, floor_db, floor_d;
+                double db, dbf, floor_db, floor_d, steps, stepsf;
                 unsigned long miss, missf;
-                run_pair(c, vd.cls, fs, x, n, nets[t].floating, &db, &floor_d, &miss);
-                run_pair(c, vf.cls, fs, x, n, nets[t].floating, &dbf, &floor_db, &missf);
+                run_pair(c, vd.cls, fs, x, n, nets[t].floating, &db, &floor_d, &miss, &steps);
+                run_pair(c, vf.cls, fs, x, n, nets[t].floating, &dbf, &floor_db, &missf, &stepsf);
                 free(x);
                 bool bad = !(db <= JOINT_TOL_DB) || miss || missf ||
-                           !(dbf <= fmax(floor_db + 20 * log10(FLOAT_FACTOR), -400));
-                print_message("%-10s %-11s %7.0f %10.1f %10.1f %10.1f %10.1f%s\n", nets[t].name, drive_name[d], fs,
-                              db, floor_d, dbf, floor_db, bad ? "  FAILED" : "");
+                           (!nets[t].float_limited && !(dbf <= fmax(floor_db + 20 * log10(FLOAT_FACTOR), -400)));
+                print_message("%-10s %-11s %7.0f %10.1f %10.1f %10.1f %10.1f %6.2f%s\n", nets[t].name, drive_name[d],
+                              fs, db, floor_d, dbf, floor_db, steps, bad ? "  FAILED" : "");
+                (void)stepsf;
                 if (miss || missf)
                     print_message("  %lu (double) and %lu (float) samples stopped at the cap\n", miss, missf);
                 failed |= bad;
                 worst = fmax(worst, db);
-                worst_f = fmax(worst_f, dbf - floor_db);
+                if (!nets[t].float_limited)
+                    worst_f = fmax(worst_f, dbf - floor_db);
             }
         tl_voice_free(&vd);
         tl_voice_free(&vf);
@@ -240,7 +263,7 @@ static void test_joint_accuracy(void **state) {
 static void test_joint_params(void **state) {
     (void)state;
     char path[256];
-    write_net(&nets[NNETS - 1], path, sizeof path);
+    write_net(&nets[5], path, sizeof path); /* param */
     Circuit *c = wdc_load(path);
     assert_non_null(c);
     tl_voice v;
@@ -290,16 +313,20 @@ static void test_joint_cap(void **state) {
         double *op[2] = {&y[0], &y[1]};
         v.cls->process(st, ip, op, 1);
     }
-    unsigned long miss = v.cls->unsolved(st);
-    print_message("--maxit 1: %lu of 256 samples stopped at the cap\n", miss);
-    assert_true(miss > 0 && miss <= 256);
+    unsigned long js[WDV_SOLVE_N];
+    v.cls->solve_stats(st, js);
+    print_message("--maxit 1: %lu of %lu solves stopped at the cap, %lu steps\n", js[WDV_SOLVE_CAPPED],
+                  js[WDV_SOLVE_SOLVES], js[WDV_SOLVE_STEPS]);
+    assert_true(js[WDV_SOLVE_SOLVES] == 256 && js[WDV_SOLVE_CAPPED] > 0 && js[WDV_SOLVE_CAPPED] <= 256);
+    assert_true(js[WDV_SOLVE_STEPS] <= 256);
     v.cls->reset(st);
-    assert_int_equal(v.cls->unsolved(st), 0);
+    v.cls->solve_stats(st, js);
+    assert_true(js[0] == 0 && js[1] == 0 && js[2] == 0);
     tl_state_free(st);
     tl_voice_free(&v);
     char cmd[1024];
     snprintf(cmd, sizeof cmd, "bin/wdc '%s' --maxit 1 --render /tmp/joint_cap_$$.wav --input noise:10 --seconds 0.01 "
-             "2>&1 | grep -q 'joint solve of the nonlinear elements stopped at its cap of 1 iterations'; r=$?; "
+             "2>&1 | grep -q 'joint solves of the nonlinear elements stopped at the cap of 1 iterations'; r=$?; "
              "rm -f /tmp/joint_cap_$$.wav; exit $r", path);
     assert_int_equal(tl_system(cmd), 0);
 }

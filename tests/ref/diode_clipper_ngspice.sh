@@ -65,15 +65,8 @@ set -u
 cd "$(dirname "$0")/../.." || exit 1
 OUT=${1:-tests/ref/diode_clipper_tran.csv}
 
-if ! command -v ngspice >/dev/null 2>&1; then
-    echo "diode_clipper_ngspice: ngspice not found; installing it with apt-get"
-    SUDO=""
-    [ "$(id -u)" -eq 0 ] || SUDO=sudo
-    { $SUDO apt-get update && $SUDO apt-get install -y ngspice; } || {
-        echo "diode_clipper_ngspice: error: could not install ngspice" >&2
-        exit 1
-    }
-fi
+. tests/ref/ngspice_lib.sh
+need_ngspice diode_clipper_ngspice
 
 WORK=$(mktemp -d) || exit 1
 trap 'rm -rf "$WORK"' EXIT INT TERM
@@ -85,19 +78,6 @@ N=1.752
 FS=48000
 NSAMP=480          # 10 ms at 48 kHz
 TSTEP=2.0833333333333333e-05
-
-# Runs deck $1 with ngspice, log in $2; fails unless the data file $3 came
-# out.  ngspice -b exits with 1 for a deck whose analyses live in .control
-# (it notes that no .print line ran one), so judge by its messages and by
-# the data it wrote.
-run_deck() {
-    ngspice -b "$1" >"$2" 2>&1
-    if grep -qi 'error' "$2" || [ ! -s "$3" ]; then
-        echo "diode_clipper_ngspice: error: ngspice failed on $1:" >&2
-        cat "$2" >&2
-        exit 1
-    fi
-}
 
 # ---- the thermal voltage ngspice uses ----
 # A diode of N=1 carrying I = IS (e^10 - 1) has v = 10 Vt exactly.
@@ -151,42 +131,12 @@ wrdata $3 v(out)
 EOF
 }
 
-# Samples ngspice's raw output (time, v pairs) at t = m/FS, m = 0..NSAMP:
-# prints "t v_cubic v_linear" per sample.
-sample() {
-    awk -v fs="$FS" -v nsamp="$NSAMP" '
-    NF >= 2 { n++; t[n] = $1 + 0; v[n] = $2 + 0 }
-    END {
-        if (n < 4) { print "too few points" > "/dev/stderr"; exit 1 }
-        i = 1
-        for (m = 0; m <= nsamp; m++) {
-            tt = m / fs
-            while (i < n - 1 && t[i + 1] <= tt) i++
-            # cubic through the four points around [t[i], t[i+1]]
-            j0 = i - 1; if (j0 < 1) j0 = 1; if (j0 > n - 3) j0 = n - 3
-            c = 0
-            for (a = j0; a < j0 + 4; a++) {
-                w = 1
-                for (b = j0; b < j0 + 4; b++)
-                    if (b != a) w *= (tt - t[b]) / (t[a] - t[b])
-                c += w * v[a]
-            }
-            l = v[i] + (v[i + 1] - v[i]) * (tt - t[i]) / (t[i + 1] - t[i])
-            if (tt < t[1] || tt > t[n] * (1 + 1e-12)) {
-                printf "sample %d (t=%.17g) outside the run\n", m, tt > "/dev/stderr"
-                exit 1
-            }
-            printf "%.17g %.17g %.17g\n", tt, c, l
-        }
-    }'
-}
-
 : >"$WORK/all.csv" || exit 1
 for A in 1 10; do
     for TMAX in 10n 5n; do
         deck "$A" "$TMAX" "$WORK/raw_${A}_$TMAX.dat" >"$WORK/dc_${A}_$TMAX.cir"
         run_deck "$WORK/dc_${A}_$TMAX.cir" "$WORK/dc_${A}_$TMAX.log" "$WORK/raw_${A}_$TMAX.dat"
-        sample <"$WORK/raw_${A}_$TMAX.dat" >"$WORK/s_${A}_$TMAX.txt" || exit 1
+        sample "$FS" "$NSAMP" 1 <"$WORK/raw_${A}_$TMAX.dat" >"$WORK/s_${A}_$TMAX.txt" || exit 1
     done
     npts=$(wc -l <"$WORK/raw_${A}_10n.dat")
     paste -d ' ' "$WORK/s_${A}_10n.txt" "$WORK/s_${A}_5n.txt" | awk -v A="$A" -v np="$npts" '
