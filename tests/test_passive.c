@@ -40,6 +40,7 @@
 #include "testlib.h"
 
 #include "../templates/nl_diode_i.c.tmpl"
+#include "../templates/nl_g.c.tmpl"
 #include "../templates/nl_memory.c.tmpl"
 #include "../templates/nl_law.c.tmpl"
 #include "../templates/nl_passive.c.tmpl"
