@@ -120,9 +120,9 @@ static void test_two_hammers_one_tap(void **state) {
     (void)state;
     expect(".domain mechanical\nstring S1 0 0 L=0.6 f0=200 taps=h@0.3\nmass M1 a m=5m\ncontact H1 a h k=1e9 alpha=2.5\n"
            "mass M2 b m=5m\ncontact H2 b h k=1e9 alpha=2.5\n.end\n",
-           "t.wdn:6:9: error: 'H1' and 'H2' are coupled with no delay between them: each instantaneously coupled part "
-           "may hold one nonlinear element; a delay element between them (a transmission line, string or tube) would "
-           "decouple them");
+           "t.wdn:4:9: error: contact 'H1' is coupled to 'H2' with no delay between them: a contact stores energy "
+           "and is solved alone, so a delay element (a transmission line, string or tube) must part it from other "
+           "nonlinear elements");
 }
 
 int main(void) {
