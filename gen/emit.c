@@ -995,6 +995,16 @@ static const char *mcoef(Ctx *x, int b, int k, int j) {
     return format("%.17g", x->mval[b][k * ne + j]);
 }
 
+/* Entry M[k][j] of root b (k a nonlinear edge) as the double a float
+ * voice's joint solve reads from c_jQ, or NULL where the voice takes M
+ * itself (a double voice, or a number). */
+static const char *jrow(Ctx *x, int b, int k, int j) {
+    const Root *r = &x->w->roots[b];
+    if (x->jq_off[b] < 0 || x->mnum[b][k * r->nedge + j])
+        return NULL;
+    return format("st->c_jQ[%d]", x->jq_off[b] + (k - r->nport) * r->nedge + j);
+}
+
 /* Union-find over a root's core nodes: the root of a's set. */
 static int uf_find(int *up, int a) {
     while (up[a] != a)
@@ -1053,18 +1063,16 @@ static void emit_joint(Ctx *x, int b) {
             const char *in = root_in(x, b, j);
             if (r->edge[j].kind == EDGE_NL || is_zero(in) || x->mzero[b][ek * r->nedge + j])
                 continue;
-            if (x->jq_off[b] >= 0 && !x->mnum[b][ek * r->nedge + j])
-                emit(&t, "%sst->c_jQ[%d] * %s", t.len ? " + " : "", x->jq_off[b] + k * r->nedge + j, dbl(x, in));
+            if (jrow(x, b, ek, j))
+                emit(&t, "%s%s * %s", t.len ? " + " : "", jrow(x, b, ek, j), dbl(x, in));
             else
                 mterm(x, &t, b, ek, j, in);
         }
         const char *sep = k ? ", " : "";
         emit(&c, "%s%s", sep, t.len ? dbl(x, format("(%s)", str(&t))) : "0");
-        for (int j = 0; j < m; j++) {
-            const char *qk = mcoef(x, b, ek, r->nport + j);
-            if (x->jq_off[b] >= 0 && !strcmp(qk, format("m%d_%d_%d", b, ek, r->nport + j)))
-                qk = format("st->c_jQ[%d]", x->jq_off[b] + k * r->nedge + r->nport + j);
-            emit(&q, "%s%s", k || j ? ", " : "", dbl(x, qk));
+        for (int j = r->nport; j < r->nport + m; j++) {
+            const char *qk = jrow(x, b, ek, j);
+            emit(&q, "%s%s", k || j > r->nport ? ", " : "", qk ? qk : dbl(x, mcoef(x, b, ek, j)));
         }
         emit(&R, "%s%s", sep, dbl(x, format("k_Rn%d", g)));
         if (e->nl->kind == NL_DIODE)

@@ -578,7 +578,8 @@ typedef struct RootEdge {
     int p, q;   /* core node indices (-1: the reference node) */
 } RootEdge;
 
-/* Nonlinear elements one root solves jointly, at most. */
+/* Nonlinear elements one root solves jointly, at most (JOINT_MAX of
+ * templates/nl_joint.c.tmpl). */
 #define WD_JOINT_MAX 8
 
 typedef struct Root {

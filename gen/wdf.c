@@ -353,11 +353,10 @@ static void check_nonlinear(Wdf *wd, Root *r) {
         r->joint = true;
         return;
     }
-    int other = bad == r->nport ? r->nport + 1 : r->nport;
-    if (bad < 0)
-        other = r->nport, bad = r->nport + WD_JOINT_MAX;
+    /* refused at the element that cannot join, else at the first past the limit */
+    int at = bad >= 0 ? bad : r->nport + WD_JOINT_MAX, other = at == r->nport ? r->nport + 1 : r->nport;
     const Elem *first = &wd->c->elems[r->edge[other].elem];
-    const Elem *second = &wd->c->elems[r->edge[bad].elem];
+    const Elem *second = &wd->c->elems[r->edge[at].elem];
     if (r->nnl > WD_JOINT_MAX)
         error_begin(second->pos, "'%s' makes %d nonlinear elements coupled with no delay between them: at most %d "
                     "are solved jointly; a delay element (a transmission line, string or tube) would part them",

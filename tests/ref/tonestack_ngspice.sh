@@ -31,15 +31,8 @@ set -u
 cd "$(dirname "$0")/../.." || exit 1
 OUT=${1:-tests/ref/tonestack_ac.csv}
 
-if ! command -v ngspice >/dev/null 2>&1; then
-    echo "tonestack_ngspice: ngspice not found; installing it with apt-get"
-    SUDO=""
-    [ "$(id -u)" -eq 0 ] || SUDO=sudo
-    { $SUDO apt-get update && $SUDO apt-get install -y ngspice; } || {
-        echo "tonestack_ngspice: error: could not install ngspice" >&2
-        exit 1
-    }
-fi
+. tests/ref/ngspice_lib.sh
+need_ngspice tonestack_ngspice
 
 WORK=$(mktemp -d) || exit 1
 trap 'rm -rf "$WORK"' EXIT INT TERM
