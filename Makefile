@@ -37,7 +37,7 @@ build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/em
 		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_law=templates/nl_law.c.tmpl tmpl_nl_passive=templates/nl_passive.c.tmpl \
 		tmpl_nl_memory=templates/nl_memory.c.tmpl tmpl_nl_g=templates/nl_g.c.tmpl tmpl_nl_joint=templates/nl_joint.c.tmpl tmpl_nl_memcap=templates/nl_memcap.c.tmpl tmpl_waveguide=templates/waveguide.c.tmpl \
 		tmpl_waveguide_state=templates/waveguide_state.c.tmpl \
-		tmpl_lu=templates/lu.c.tmpl tmpl_retune=templates/retune.c.tmpl tmpl_root=templates/root.c.tmpl \
+		tmpl_lu=templates/lu.c.tmpl tmpl_retune=templates/retune.c.tmpl tmpl_root=templates/root.c.tmpl tmpl_ctl_stamp=templates/ctl_stamp.c.tmpl \
 		tmpl_nl_adapt=templates/nl_adapt.c.tmpl tmpl_settle=templates/settle.c.tmpl tmpl_params=templates/params.c.tmpl \
 		tmpl_lv2_c=templates/lv2.c.tmpl tmpl_lv2_manifest=templates/lv2_manifest.ttl.tmpl \
 		tmpl_lv2_plugin=templates/lv2_plugin.ttl.tmpl

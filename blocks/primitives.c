@@ -24,6 +24,11 @@ const Prim prims[] = {
     /* its last incoming wave behind its port resistance */
     [E_S] = {"waveguide port", "b = the wave the string or tube brings; port its impedance", WD_WAVEGUIDE, 'v', 0,
              ROOT_NEVER, IC_WAVE, IC_WAVE},
+    /* controlled sources stamp their root's nodal equations */
+    [E_CV] = {"controlled voltage source", "v = gain v(probe)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CV, IC_CV},
+    [E_CI] = {"controlled current source", "i = gain v(probe)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CI, IC_CI},
+    [E_OA] = {"op-amp output", "any current that holds v(probe) = 0", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_OA, IC_OA},
+    [E_P] = {"probe", "i = 0", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_PROBE, IC_PROBE},
 };
 
 bool prim_at_root(const Elem *e) {

@@ -1364,7 +1364,7 @@ static void check_values(Elab *E) {
         Elem *e = &c->elems[i];
         if (e->kind == E_V && !e->val)
             continue;
-        if (e->kind == E_I && !e->val)
+        if ((e->kind == E_I && !e->val) || ELEM_CONTROLLED(e->kind)) /* gains: checked as lowered */
             continue;
         if (e->kind == E_NL) {
             check_nl(c, e, p);
@@ -1468,6 +1468,19 @@ static void finish(Elab *E) {
     COPY(ics, ics, nics, IcSpec)
     COPY(wgs, wgs, nwgs, Waveguide)
 #undef COPY
+    /* peers by name: passes before this one drop elements */
+    for (int i = 0; i < c->nelems; i++) {
+        Elem *e = &c->elems[i];
+        size_t n = strlen(e->name);
+        if (e->kind == E_W)
+            e->peer = elem_index(E, format("%.*s%c", (int)n - 1, e->name, e->name[n - 1] == '1' ? '2' : '1'));
+        else if (e->kind == E_CV || e->kind == E_CI || e->kind == E_OA)
+            e->peer = elem_index(E, format("%s.in", e->name));
+        else if (e->kind == E_P)
+            e->peer = elem_index(E, format("%.*s", (int)n - 3, e->name));
+        if ((e->kind == E_W || ELEM_CONTROLLED(e->kind)) && e->peer < 0)
+            die("element '%s' lost its peer", e->name);
+    }
     c->nnodes = E->nodes.len;
     c->nodes = (const char **)E->nodes.data;
     c->ninputs = E->inputs.len;

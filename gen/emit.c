@@ -13,7 +13,7 @@
 
 extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[], tmpl_nl_fast[],
     tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_g[], tmpl_nl_joint[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
-    tmpl_lu[], tmpl_retune[], tmpl_root[], tmpl_nl_adapt[], tmpl_settle[], tmpl_params[];
+    tmpl_lu[], tmpl_retune[], tmpl_root[], tmpl_nl_adapt[], tmpl_settle[], tmpl_params[], tmpl_ctl_stamp[];
 
 /* Arguments that name a mutated element's inner law for the mem_ kernels. */
 static const char *mem_args(int k, const NlSpec *nl) {
@@ -165,6 +165,7 @@ typedef struct Ctx {
     int nk, nreact;
     int *src;        /* element -> source index or -1 */
     int nsrc;
+    int nctl;        /* controlled sources and op-amps (their outputs) */
     int *nl_root;    /* nonlinear index -> its root */
     int *nl_edge;    /* nonlinear index -> its edge in that root */
     int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
@@ -854,6 +855,8 @@ static bool *root_zeros(const Root *r) {
 static void root_static(Ctx *x, int rb) {
     const Root *r = &x->w->roots[rb];
     const int ne = r->nedge;
+    if (r->nctl) /* controlled sources: the general solve */
+        return;
     Sx *sx = sx_new("u");
     Sym *g = arena_alloc(sizeof(Sym) * (size_t)(ne + 1)), *val = arena_alloc(sizeof(Sym) * (size_t)(ne + 1));
     Sym *pot = arena_alloc(sizeof(Sym) * (size_t)(r->ncore + 1)), *cur = arena_alloc(sizeof(Sym) * (size_t)(ne + 2));
@@ -1964,7 +1967,8 @@ static const char *root_table(Ctx *x, Buf *desc) {
             emit(&b, "%s{%s, %d, %d, %d}", first + k ? ", " : "", edge_code(e->kind), e->p, e->q,
                  e->kind == EDGE_PORT ? e->node->id : e->kind == EDGE_NL ? x->nl_first[rb] + k - r->nport : -1);
         }
-        emit(desc, "%s{%d, %d, %d, %d, %d}", rb ? ", " : "", first, r->nedge, r->ncore + r->nv, r->nv, x->moff[rb]);
+        emit(desc, "%s{%d, %d, %d, %d, %d}", rb ? ", " : "", first, r->nedge, r->ncore + r->nx + r->nv, r->nv,
+             x->moff[rb]);
         first += r->nedge;
     }
     emit(&b, "}");
@@ -2015,6 +2019,8 @@ static int stamp_source(Ctx *x, Sx *sx, Lin *L, int i, Sym *val, Sym *v) {
 
 static const char *settle_static(Ctx *x, bool force, const char *probes) {
     const Circuit *c = x->c;
+    if (x->nctl) /* the straight-line solve takes conductances and sources only */
+        return NULL;
     Sx *sx = sx_new("u");
     Lin *L = lin_new(sx, c->nnodes - 1);
     int *ea = arena_alloc(sizeof(int) * (size_t)c->nelems);
@@ -2126,7 +2132,7 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
  * even with GMIN. */
 static bool dcop_try(Ctx *x, bool gmin) {
     const Circuit *c = x->c;
-    if (!c->deck || c->uic || !x->settle || !x->nreact || x->nnl || c->nwgs || x->nline)
+    if (!c->deck || c->uic || !x->settle || !x->nreact || x->nnl || c->nwgs || x->nline || x->nctl)
         return false;
     Sx *sx = sx_new("u");
     Lin *L = lin_new(sx, c->nnodes - 1);
@@ -2182,11 +2188,14 @@ static const char *ic_table(Ctx *x, int *nv) {
     Buf b = {0};
     emit(&b, "{");
     *nv = 0;
+    int nctl = 0;
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         WNode *n = x->w->leaf_of[i];
         int kind = prim_ic(e), nli = nl_index(x, e);
-        *nv += kind == IC_CAP || kind == IC_V;
+        *nv += kind == IC_CAP || kind == IC_V || kind == IC_CV || kind == IC_OA;
+        if (ELEM_CONTROLLED(e->kind)) /* an output: its row of ic_ctl */
+            nli = e->kind == E_P ? -1 : nctl++;
         emit(&b, "%s{%s, %d, %d, %d, %d, %d}", i ? ", " : "", ic_code(kind), e->n[0], e->n[1], n ? n->id : -1,
              e->kind == E_S ? x->sp_of[i] : n ? x->react[n->id] : nli, x->src[i]);
     }
@@ -2479,6 +2488,8 @@ static void index_tree(Ctx *x) {
     }
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
     for (int i = 0; i < c->nelems; i++)
+        x->nctl += ELEM_CONTROLLED(c->elems[i].kind) && c->elems[i].kind != E_P;
+    for (int i = 0; i < c->nelems; i++)
         x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
 }
 
@@ -2501,6 +2512,7 @@ static const struct {
     {"flush", "static real flush(real x) { return x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
     {"lu_factor", tmpl_lu},
     {"retune", tmpl_retune},
+    {"ctl_stamp", tmpl_ctl_stamp},
 };
 
 /* The helpers that `text` (the voice without them) and `wg` (the
@@ -2571,11 +2583,11 @@ static const char *settle_store(Ctx *x, int nicv, const char *probes) {
                  "        int p = e[1] - 1, q = e[2] - 1;\n"
                  "        double v = ok ? (p >= 0 ? x[p] : 0) - (q >= 0 ? x[q] : 0) : 0, i = 0;\n"
                  "        double R = e[3] >= 0 ? st->c_R[e[3]] : 0;\n"
-                 "        if (e[0] == IC_CAP || e[0] == IC_V)\n"
+                 "        if (e[0] == IC_CAP || e[0] == IC_V%s)\n"
                  "            i = ok ? x[m++] : 0;\n"
                  "        switch (e[0]) {\n"
                  "        case IC_CAP: v = react[e[4]]; break;\n"
-                 "        case IC_IND: i = react[e[4]]; break;\n", nicv);
+                 "        case IC_IND: i = react[e[4]]; break;\n", nicv, x->nctl ? " || e[0] == IC_CV || e[0] == IC_OA" : "");
         if (work)
             emit(&b, "        case IC_V: st->s_wi[e[5]] = (real)i; break;\n"
                      "        case IC_RV: st->s_wi[e[5]] = (real)((v - (double)st->s_e[e[5]]) / R); break;\n"
@@ -2908,6 +2920,58 @@ static void measure_holes(Ctx *x, Holes *t, const char *energy) {
                                           "static double voice_work(const void *vst UNUSED) { return (double)NAN; }");
 }
 
+/* settle's cases for controlled sources and op-amps: each output's row
+ * of ic_ctl holds its probe's nodes and its gain; a voltage output's
+ * current is an unknown, as an ideal V source's is. */
+static const char *ic_ctl(Ctx *x) {
+    if (!x->nctl)
+        return "";
+    const Circuit *c = x->c;
+    Buf b = {0};
+    emit(&b, "        case IC_CV: case IC_CI: case IC_OA: {\n"
+             "            static const double ic_ctl[][3] = {");
+    for (int i = 0, k = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        if (!ELEM_CONTROLLED(e->kind) || e->kind == E_P)
+            continue;
+        const Elem *pr = &c->elems[e->peer];
+        emit(&b, "%s{%d, %d, %s}", k++ ? ", " : "", pr->n[0], pr->n[1], lit(x, e->val ? expr_eval(e->val, NULL) : 0));
+    }
+    emit(&b, "}; /* probe's nodes, gain */\n"
+             "            const double *t = ic_ctl[e[4]];\n"
+             "            ctl_stamp(A, N_ICN, e[0], p, q, (int)t[0] - 1, (int)t[1] - 1, m, t[2]);\n"
+             "            if (e[0] != IC_CI)\n"
+             "                x[m++] = 0;\n"
+             "            break;\n"
+             "        }\n"
+             "        case IC_PROBE: break; /* no current */\n");
+    return str(&b);
+}
+
+/* The controlled sources of the roots, for core_matrix. */
+static const char *root_ctl_table(Ctx *x) {
+    if (!x->nctl)
+        return "";
+    Buf b = {0};
+    emit(&b, "/* Controlled sources and op-amps in the roots: root, kind, output's\n"
+             " * core unknowns p q, probe's cp cn (-1: reference), the unknown of its\n"
+             " * current (voltage outputs), gain. */\n"
+             "static const double root_ctl[][8] = {");
+    int k = 0;
+    for (int rb = 0; rb < x->w->nroots; rb++) {
+        const Root *r = &x->w->roots[rb];
+        for (int j = 0, u = r->ncore; j < r->nctl; j++) {
+            const struct RootCtl *c = &r->ctl[j];
+            emit(&b, "%s{%d, %s, %d, %d, %d, %d, %d, %s}", k++ ? ", " : "", rb,
+                 c->kind == E_CV ? "IC_CV" : c->kind == E_CI ? "IC_CI" : "IC_OA", c->p, c->q, c->cp, c->cn,
+                 c->kind == E_CI ? -1 : u, lit(x, c->gain));
+            u += c->kind != E_CI;
+        }
+    }
+    emit(&b, "};\n\n");
+    return str(&b);
+}
+
 /* The holes of root.c.tmpl and settle.c.tmpl, and the elastic forces
  * (`force`: one line per element that has one) settle asks for. */
 static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune, const char *probes, int nicv) {
@@ -2919,6 +2983,13 @@ static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune,
     set(t, "edge_R", x->nnl ? "e[0] == EDGE_PORT ? st->c_R[e[3]] : st->c_Rn[e[3]]" : "st->c_R[e[3]]");
     set(t, "nl_adapt", x->nnl ? tmpl_nl_adapt : "");
     set(t, "nl_adapt_call", x->nnl ? "    nl_adapt(st, rb, A, x, piv);\n" : "");
+    set(t, "ic_ctl", ic_ctl(x));
+    set(t, "root_ctl_table", root_ctl_table(x));
+    set(t, "root_ctl_stamp", x->nctl ? "    for (size_t c = 0; c < sizeof root_ctl / sizeof root_ctl[0]; c++)\n"
+                                       "        if ((int)root_ctl[c][0] == rb)\n"
+                                       "            ctl_stamp(A, n, (int)root_ctl[c][1], (int)root_ctl[c][2], (int)root_ctl[c][3],\n"
+                                       "                      (int)root_ctl[c][4], (int)root_ctl[c][5], (int)root_ctl[c][6], root_ctl[c][7]);\n"
+                                     : "");
     set(t, "ic_drive", keeps_drive(x) ? "e[5] >= 0 ? st->s_e[e[5]] : 0" : "0");
     set(t, "ic_current", *force ? "e[0] == IC_IND ? react[e[4]] : e[0] == IC_FORCE ? nl_force(st, e[4]) : drive"
                                 : "e[0] == IC_IND ? react[e[4]] : drive");
@@ -3030,7 +3101,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     for (int b = 0; b < w->nroots; b++) {
         const Root *r = &w->roots[b];
         if (!x.rfn[b]) /* a root with the general solve */
-            ncore = r->ncore + r->nv > ncore ? r->ncore + r->nv : ncore;
+            ncore = r->ncore + r->nx + r->nv > ncore ? r->ncore + r->nx + r->nv : ncore;
         nports += r->nport;
         nsrcs += r->nedge - r->nport - r->nnl;
     }

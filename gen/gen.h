@@ -327,7 +327,19 @@ typedef enum {
              entered the other end `peer` td seconds earlier */
     E_S,  /* one side of a point of a waveguide (string, tube) from node n0
              to ground: val = its port resistance; see Waveguide */
+    E_CV, /* controlled voltage source: v(n0)-v(n1) = val * the voltage
+             across its probe `peer` */
+    E_CI, /* controlled current source: val * the voltage across its probe
+             `peer` flows n0 -> n1 through it */
+    E_OA, /* ideal op-amp's output, n0 to n1 (ground): any current that
+             holds the voltage across its probe `peer` at 0 */
+    E_P,  /* the probe of a controlled source or op-amp: no current; its
+             voltage v(n0)-v(n1) is the control */
 } ElemKind;
+
+/* Whether e is a controlled source's output or probe (they join a root
+ * together and stamp its nodal equations, not its scattering edges). */
+#define ELEM_CONTROLLED(k) ((k) == E_CV || (k) == E_CI || (k) == E_OA || (k) == E_P)
 
 typedef enum {
     NL_DIODE,   /* i = Is (exp(v/(n Vt)) - 1), or 2 Is sinh(v/(n Vt)) for a pair */
@@ -599,6 +611,19 @@ typedef struct Root {
      * default params and rate. */
     double *M;
     uint64_t pmask;    /* params M depends on */
+    /* Controlled sources and op-amps held in the core: each output
+     * (E_CV, E_CI, E_OA) with its probe's core nodes; a voltage output
+     * adds an unknown (its current) after the nodes and before the ideal
+     * V sources' currents.  Active, so the root is not lossless. */
+    struct RootCtl {
+        int elem;      /* the output element */
+        int kind;      /* E_CV, E_CI or E_OA */
+        int p, q;      /* output's core nodes */
+        int cp, cn;    /* probe's core nodes */
+        double gain;
+    } *ctl;
+    int nctl;
+    int nx;            /* unknowns the outputs add: E_CV and E_OA */
 } Root;
 
 typedef struct Wdf {

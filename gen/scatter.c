@@ -8,18 +8,40 @@
 
 #include "gen.h"
 
-/* The core's nodal matrix (plus one row and column per ideal V source):
- * ports and nonlinear edges stamp their conductance 1/R, edge `skip` is
- * left out. */
+/* The core's nodal matrix, plus a row and column per controlled voltage
+ * output and per ideal V source: ports and nonlinear edges stamp their
+ * conductance 1/R, edge `skip` is left out; controlled sources stamp
+ * their gains. */
 static double *core_matrix(const Root *r, const double *R, int skip, int *dim) {
-    int nc = r->ncore, D = nc + r->nv;
+    int nc = r->ncore, D = nc + r->nx + r->nv;
     double *A = arena_alloc(sizeof(double) * (size_t)(D * D));
     int m = 0;
+    for (int k = 0, x = nc; k < r->nctl; k++) {
+        const struct RootCtl *c = &r->ctl[k];
+        int p = c->p, q = c->q, cp = c->cp, cn = c->cn;
+        if (c->kind == E_CI) { /* g v(probe) leaves p, enters q */
+            if (p >= 0 && cp >= 0) A[p * D + cp] += c->gain;
+            if (p >= 0 && cn >= 0) A[p * D + cn] -= c->gain;
+            if (q >= 0 && cp >= 0) A[q * D + cp] -= c->gain;
+            if (q >= 0 && cn >= 0) A[q * D + cn] += c->gain;
+            continue;
+        }
+        /* its current x leaves p, enters q; its row: v(p) - v(q) - gain
+         * v(probe) = 0, or an op-amp's v(probe) = 0 */
+        if (p >= 0) A[p * D + x] += 1;
+        if (q >= 0) A[q * D + x] -= 1;
+        double g = c->kind == E_OA ? -1 : c->gain;
+        if (c->kind == E_CV && p >= 0) A[x * D + p] += 1;
+        if (c->kind == E_CV && q >= 0) A[x * D + q] -= 1;
+        if (cp >= 0) A[x * D + cp] -= g;
+        if (cn >= 0) A[x * D + cn] += g;
+        x++;
+    }
     for (int k = 0; k < r->nedge; k++) {
         const RootEdge *e = &r->edge[k];
         int p = e->p, q = e->q;
         if (e->kind == EDGE_V) {
-            int row = nc + m++;
+            int row = nc + r->nx + m++;
             if (p >= 0) { A[p * D + row] += 1; A[row * D + p] += 1; }
             if (q >= 0) { A[q * D + row] -= 1; A[row * D + q] -= 1; }
         } else if ((e->kind == EDGE_PORT || e->kind == EDGE_NL) && k != skip) {
@@ -62,7 +84,7 @@ int scatter_thevenin(const Root *r, const double *R, int k, double *Rth) {
 
 int scatter_root(const Root *r, const double *R, double *M) {
     int nc = r->ncore, ne = r->nedge, D;
-    if (nc + r->nv == 0)
+    if (nc + r->nx + r->nv == 0)
         die("root without core nodes");
     double *A = core_matrix(r, R, -1, &D);
     double *B = arena_alloc(sizeof(double) * (size_t)(D * ne));
@@ -76,7 +98,7 @@ int scatter_root(const Root *r, const double *R, double *M) {
             if (p >= 0) BT(p, k) += G;
             if (q >= 0) BT(q, k) -= G;
         } else if (e->kind == EDGE_V) {
-            BT(nc + m++, k) = 1;
+            BT(nc + r->nx + m++, k) = 1;
         } else {
             if (p >= 0) BT(p, k) -= 1;
             if (q >= 0) BT(q, k) += 1;
@@ -93,7 +115,7 @@ int scatter_root(const Root *r, const double *R, double *M) {
             if (e->kind == EDGE_PORT || e->kind == EDGE_NL)
                 out = 2 * (vp - vq) - (j == k);
             else if (e->kind == EDGE_V)
-                out = BT(nc + m, j);
+                out = BT(nc + r->nx + m, j);
             else
                 out = vp - vq;
             M[k * ne + j] = out;
@@ -230,9 +252,14 @@ static double root_check(const Root *r, double tol) {
         lo = fmin(lo, r->R[k]), hi = fmax(hi, r->R[k]);
     /* the nodal solve loses digits with the spread of port resistances */
     double bound = fmax(tol, 64 * DBL_EPSILON * hi / lo);
-    if (!(err <= bound))
+    if (r->nctl) { /* active: neither lossless nor a tableau over its edges alone */
+        for (int i = 0; i < ne * ne; i++)
+            if (!isfinite(r->M[i]))
+                die("the root's matrix is not finite");
+        err = 0;
+    } else if (!(err <= bound))
         die("root adaptor is not lossless (error %g)", err);
-    double res = tableau_residual(r, r->M);
+    double res = r->nctl ? 0 : tableau_residual(r, r->M);
     if (!(res <= bound * fmax(scale, 1) * 1e3))
         die("the root's matrix does not satisfy its tableau of Kirchhoff's laws (residual %g)", res);
     for (int k = r->nport; k < np && !r->joint; k++) /* a joint root's are not */
@@ -460,7 +487,18 @@ void scatter_print_tableau(const Wdf *w, FILE *out) {
                     e->kind == EDGE_PORT ? "port" : e->kind == EDGE_V ? "ideal V" : e->kind == EDGE_I ? "ideal I" : "nonlinear, port",
                     port ? format(" R = %.6g", r->R[k]) : "");
         }
-        Tableau t = tableau(r, r->R);
+        for (int k = 0; k < r->nctl; k++) {
+            const struct RootCtl *x = &r->ctl[k];
+#define NAME(n) c->nodes[(n) >= 0 ? r->core_node[n] : r->ref_node]
+            fprintf(out, "  %s: %s, %s -> %s, %s v(%s, %s)\n", c->elems[x->elem].name,
+                    x->kind == E_OA ? "op-amp output" : x->kind == E_CV ? "controlled V" : "controlled I",
+                    NAME(x->p), NAME(x->q), x->kind == E_OA ? "holding 0 =" : format("gain %.6g times", x->gain),
+                    NAME(x->cp), NAME(x->cn));
+#undef NAME
+        }
+        if (r->nctl) /* its KCL would hold the outputs' currents, which are not edges */
+            fprintf(out, "  its controlled sources are solved in its nodal equations, not a tableau over its edges\n");
+        Tableau t = r->nctl ? (Tableau){0} : tableau(r, r->R);
         fprintf(out, "  tableau T x = U k, x = [");
         for (int k = 0; k < ne; k++)
             fprintf(out, "%s%s", k ? " " : "", unk[k]);
@@ -468,7 +506,7 @@ void scatter_print_tableau(const Wdf *w, FILE *out) {
         for (int k = 0; k < ne; k++)
             fprintf(out, "%s%s", k ? " " : "", kn[k]);
         fprintf(out, "]\n");
-        for (int i = 0; i < ne; i++) {
+        for (int i = 0; i < t.n; i++) {
             fprintf(out, "  %-4s", i < t.nkcl ? "KCL" : "KVL");
             for (int k = 0; k < ne; k++)
                 fprintf(out, " %11.4g", t.T[i * ne + k]);

@@ -441,6 +441,8 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl,
             if (!E[i].alive)
                 continue;
             ElemKind ek = E[i].node ? E_R : c->elems[E[i].src].kind;
+            if (ELEM_CONTROLLED(ek))
+                continue;
             int kind = E[i].node ? EDGE_PORT : ek == E_V ? EDGE_V : ek == E_I ? EDGE_I : EDGE_NL;
             if (kind != order[pass])
                 continue;
@@ -459,6 +461,21 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl,
             if (kind == EDGE_NL)
                 r->nnl++;
         }
+    r->ctl = arena_alloc(sizeof(*r->ctl) * (size_t)(nalive + 1));
+    for (int i = 0; i < ne; i++) {
+        if (!E[i].alive || E[i].node || !ELEM_CONTROLLED(c->elems[E[i].src].kind) || c->elems[E[i].src].kind == E_P)
+            continue;
+        const Elem *e = &c->elems[E[i].src], *pr = &c->elems[e->peer];
+        struct RootCtl *x = &r->ctl[r->nctl++];
+        x->elem = E[i].src;
+        x->kind = e->kind;
+        x->p = core[loc[E[i].u]];
+        x->q = core[loc[E[i].w]];
+        x->cp = core[loc[pr->n[0]]];
+        x->cn = core[loc[pr->n[1]]];
+        x->gain = e->val ? expr_eval(e->val, NULL) : 0;
+        r->nx += e->kind != E_CI;
+    }
     check_nonlinear(wd, r);
     r->M = arena_alloc(sizeof(double) * (size_t)(r->nedge * r->nedge));
     double *R = r->R = arena_alloc(sizeof(double) * (size_t)(r->nport + r->nnl + 1));
@@ -569,6 +586,46 @@ static int blocks(Edge *E, int ne, int nnodes, int *block) {
     return nblocks;
 }
 
+/* A controlled source's output and its probe stamp one root's nodal
+ * equations: their blocks become one (the root's core then holds parts
+ * that meet only through the control). */
+static void merge_controlled(const Circuit *c, int *block, int *nblocks) {
+    int nb = *nblocks;
+    int *uf = arena_alloc(sizeof(int) * (size_t)(nb + 1)), *id = arena_alloc(sizeof(int) * (size_t)(nb + 1));
+    for (int b = 0; b < nb; b++)
+        uf[b] = b, id[b] = -1;
+    bool any = false;
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        if (e->kind != E_P)
+            continue;
+        int a = block[i], b = block[e->peer];
+        if (a < 0 || b < 0)
+            error_at(e->pos, "%s '%s' joins a node to itself", block_desc[e->user_kind].desc, e->name);
+        while (uf[a] != a)
+            a = uf[a];
+        while (uf[b] != b)
+            b = uf[b];
+        if (a != b)
+            uf[a > b ? a : b] = a < b ? a : b, any = true;
+    }
+    if (!any)
+        return;
+    int n = 0;
+    for (int b = 0; b < nb; b++) {
+        int r = b;
+        while (uf[r] != r)
+            r = uf[r];
+        if (id[r] < 0)
+            id[r] = n++;
+        id[b] = id[r];
+    }
+    for (int i = 0; i < c->nelems; i++)
+        if (block[i] >= 0)
+            block[i] = id[block[i]];
+    *nblocks = n;
+}
+
 /* The path from ground to each graph node along a breadth-first tree of
  * the element graph: element indices with sign, so v(node) = sum sign *
  * v(elem).  A node's path is its parent's and one step more, so a node
@@ -591,6 +648,8 @@ static void build_paths(Wdf *w) {
         int n = queue[head++];
         for (int j = start[n]; j < start[n + 1]; j++) {
             int i = at[j];
+            if (ELEM_CONTROLLED(c->elems[i].kind)) /* no voltage of their own to read */
+                continue;
             for (int k = 0; k < 2; k++) {
                 int m = c->elems[i].n[!k];
                 if (c->elems[i].n[k] != n || seen[m])
@@ -603,9 +662,12 @@ static void build_paths(Wdf *w) {
             }
         }
     }
-    for (int n = 1; n < nn; n++) /* unreached (never, past elaboration): one step from ground */
+    for (int n = 1; n < nn; n++) /* reached only through controlled sources */
         if (!seen[n])
-            queue[tail++] = n;
+            for (int i = 0; i < c->nelems; i++)
+                if (c->elems[i].n[0] == n || c->elems[i].n[1] == n)
+                    error_at(c->elems[i].pos, "node '%s' meets only controlled sources and op-amps: give it a "
+                             "path to ground through other elements", c->nodes[n]);
     /* height of each node's subtree; each node's deepest child (the first
      * of equals) continues its storage */
     int *height = arena_alloc(sizeof(int) * (size_t)nn), *heir = arena_alloc(sizeof(int) * (size_t)nn);
@@ -678,6 +740,7 @@ Wdf *wdf_build(Circuit *c, double fs) {
      * joins independent parts */
     int *block = arena_alloc(sizeof(int) * (size_t)c->nelems);
     w->nroots = blocks(E, c->nelems, c->nnodes, block);
+    merge_controlled(c, block, &w->nroots);
     w->roots = arena_alloc(sizeof(Root) * (size_t)w->nroots);
     /* each block's edges in element order, and its nodes in graph order */
     int *bstart = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
@@ -792,5 +855,8 @@ void wdf_dump(const Wdf *w, FILE *out) {
                 fprintf(out, "  %s %s\n", r->edge[i].kind == EDGE_NL ? "nonlinear" : "source",
                         w->c->elems[r->edge[i].elem].name);
         }
+        for (int i = 0; i < r->nctl; i++)
+            fprintf(out, "  %s %s\n", r->ctl[i].kind == E_OA ? "op-amp" : "controlled",
+                    w->c->elems[r->ctl[i].elem].name);
     }
 }

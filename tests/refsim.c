@@ -49,6 +49,7 @@ struct refsim {
                          nonlinear capacitor: the voltage of its law
                          that gives its charge */
     real gscale;      /* largest conductance in the step matrix */
+    real ntol;        /* Newton's stop: NL_TOL, or coarser behind a gain */
     real *Rp;         /* contact, nonlinear inductor: the resistance the
                          rest of the step network presents to it */
     int nl_maxit;     /* most Newton iterations one step took */
@@ -229,6 +230,30 @@ static void stamp_branch(real *A, int N, int a, int b, int k) {
         A[(b - 1) * N + k] -= 1.0;
         A[k * N + (b - 1)] -= 1.0;
     }
+}
+
+/* A controlled source's output e (branch unknown k for a voltage output
+ * or an op-amp) with gain g on the voltage across its probe. */
+static void stamp_ctl(const Circuit *c, real *A, int N, int e, int k, real g) {
+    const Elem *el = &c->elems[e], *pr = &c->elems[el->peer];
+    int a = el->n[0], b = el->n[1], cp = pr->n[0], cn = pr->n[1];
+    if (el->kind == E_CI) { /* g v(probe) from a through it to b */
+        if (a && cp) A[(a - 1) * N + cp - 1] += g;
+        if (a && cn) A[(a - 1) * N + cn - 1] -= g;
+        if (b && cp) A[(b - 1) * N + cp - 1] -= g;
+        if (b && cn) A[(b - 1) * N + cn - 1] += g;
+        return;
+    }
+    if (a) A[(a - 1) * N + k] += 1.0;
+    if (b) A[(b - 1) * N + k] -= 1.0;
+    if (el->kind == E_CV) { /* v(a) - v(b) - g v(probe) = 0 */
+        if (a) A[k * N + a - 1] += 1.0;
+        if (b) A[k * N + b - 1] -= 1.0;
+    } else { /* an op-amp: v(probe) = 0 */
+        g = -1.0;
+    }
+    if (cp) A[k * N + cp - 1] -= g;
+    if (cn) A[k * N + cn - 1] += g;
 }
 
 /* A current j flowing from a through an element to b, moved to the
@@ -634,7 +659,9 @@ static real sumsq(const real *r, int n) {
  * the larger of the largest branch current and the current the largest
  * conductance of the network drives at that voltage (branch unknowns:
  * a branch current that is the small difference of large ones is known
- * only to that). */
+ * only to that).  Behind a controlled source of gain A, whose row
+ * amplifies rounding A times, the bound is 64 A ulps where that is
+ * coarser. */
 static void nl_solve(refsim *s, real *rhs) {
     const Circuit *c = s->c;
     int N = s->N, nn = s->nn;
@@ -664,7 +691,7 @@ static void nl_solve(refsim *s, real *rhs) {
         converged = 1;
         for (int k = 0; k < N && converged; k++) {
             real sc = fmaxl(k < nn ? sn : fmaxl(sb, sn * s->gscale), 1e-300L);
-            if (!(fabsl(dx[k]) <= NL_TOL * sc))
+            if (!(fabsl(dx[k]) <= s->ntol * sc))
                 converged = 0;
         }
         real lam = 1.0;
@@ -757,6 +784,9 @@ static void build_step_matrix(refsim *s) {
             if (has_value(el))
                 stamp_g(A, N, a, b, 1.0 / x);
             break;
+        case E_CV: case E_CI: case E_OA:
+            stamp_ctl(c, A, N, e, s->br[e], x);
+            break;
         }
     }
     pin_unused(c, A, N);
@@ -768,6 +798,12 @@ static void build_step_matrix(refsim *s) {
         for (int r = 0; r < s->nn; r++)
             for (int k = 0; k < s->nn; k++)
                 s->gscale = fmaxl(s->gscale, fabsl(A[r * N + k]));
+        /* a controlled source of gain A amplifies rounding A times: the
+         * solution is resolved to about A ulps, no better */
+        s->ntol = NL_TOL;
+        for (int e = 0; e < c->nelems; e++)
+            if (c->elems[e].kind == E_CV)
+                s->ntol = fmaxl(s->ntol, 64 * LDBL_EPSILON * fabsl(s->val[e]));
         if (s->round_state)
             for (size_t k = 0; k < (size_t)N * (size_t)N; k++)
                 s->G[k] = rd(s->G[k]);
@@ -836,6 +872,9 @@ static void build_init_system(const refsim *s, const int *br0, int N,
              * force at its initial compression */
             stamp_j(x, a, b, nl_rest_current(s, e));
             break;
+        case E_CV: case E_CI: case E_OA:
+            stamp_ctl(c, A, N, e, br0[e], val);
+            break;
         default:
             break;
         }
@@ -855,11 +894,11 @@ static void initial_state(refsim *s) {
     for (int e = 0; e < ne; e++) {
         const Elem *el = &c->elems[e];
         br0[e] = -1;
-        if ((el->kind == E_C || el->kind == E_V) && !self_loop(el))
+        if ((el->kind == E_C || el->kind == E_V || el->kind == E_CV || el->kind == E_OA) && !self_loop(el))
             br0[e] = N++;
-        vedge[e] = el->kind == E_C || (el->kind == E_V && !has_value(el));
+        vedge[e] = el->kind == E_C || (el->kind == E_V && !has_value(el)) || el->kind == E_CV || el->kind == E_OA;
         iedge[e] = el->kind == E_L || (el->kind == E_I && !has_value(el)) ||
-                   is_nl(el);
+                   is_nl(el) || el->kind == E_CI || el->kind == E_P;
         if (has_flux(el))
             s->cx[e] = ic_x(s, el->n[0]) - ic_x(s, el->n[1]);
     }
@@ -951,7 +990,8 @@ static void initial_state(refsim *s) {
 /* ---- public ---- */
 
 int refsim_linear_kind(int kind) {
-    return kind == E_R || kind == E_C || kind == E_L || kind == E_V || kind == E_I;
+    return kind == E_R || kind == E_C || kind == E_L || kind == E_V || kind == E_I || kind == E_CV || kind == E_CI ||
+           kind == E_OA || kind == E_P;
 }
 
 int refsim_can_simulate(const Circuit *c) {
@@ -1014,10 +1054,10 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     for (int e = 0; e < ne; e++) {
         const Elem *el = &c->elems[e];
         s->br[e] = -1;
-        if ((el->kind == E_L || el->kind == E_V) && !self_loop(el))
+        if ((el->kind == E_L || el->kind == E_V || el->kind == E_CV || el->kind == E_OA) && !self_loop(el))
             s->br[e] = N++;
-        vedge[e] = el->kind == E_V && !has_value(el);
-        iedge[e] = (el->kind == E_I && !has_value(el)) || nl_open_edge(el);
+        vedge[e] = (el->kind == E_V && !has_value(el)) || el->kind == E_CV || el->kind == E_OA;
+        iedge[e] = (el->kind == E_I && !has_value(el)) || nl_open_edge(el) || el->kind == E_CI || el->kind == E_P;
         if (is_nl(el))
             s->nnl++;
     }
@@ -1149,6 +1189,14 @@ void refsim_step(refsim *s, const double *in, double *out) {
             s->i[e] = dn + (has_value(el) ? vv / s->val[e] : 0.0);
             pw -= 0.25 * (vv + pv) * (dn + s->d[e]);
             s->d[e] = dn;
+            break;
+        }
+        case E_CV: case E_CI: case E_OA: { /* the work it does, as a source's */
+            const Elem *pr = &c->elems[el->peer];
+            s->v[e] = vv;
+            s->i[e] = el->kind == E_CI ? s->val[e] * (s->nodev[pr->n[0]] - s->nodev[pr->n[1]])
+                                       : self_loop(el) ? 0.0 : rhs[s->br[e]];
+            pw -= 0.25 * (vv + pv) * (s->i[e] + pi);
             break;
         }
         case E_NL: {

@@ -128,6 +128,29 @@ static void test_pot_and_line(void **state) {
     assert_float_equal(t1->td, 1e-3, 0);
 }
 
+/* E, G and opamp: an output and a probe each, peers of each other even
+ * when elements before them leave (a facing diode taken into a pair). */
+static void test_controlled(void **state) {
+    (void)state;
+    Circuit *c = load(".input in\n.model DM D Is=2e-12\nV1 a 0 in R=1k\nD1 a 0 DM\nD2 0 a DM\nE1 b 0 a 0 2.5\n"
+                      "R2 b n 1k\nG1 n 0 b 0 1m\nopamp U1 o a n\nR3 o n 10k\n");
+    const Elem *e1 = elem(c, "E1"), *g1 = elem(c, "G1"), *u1 = elem(c, "U1");
+    check(c, e1, E_CV, "b", "0", NAN);
+    check(c, g1, E_CI, "n", "0", NAN);
+    check(c, u1, E_OA, "o", "0", NAN);
+    assert_float_equal(expr_eval(e1->val, NULL), 2.5, 0);
+    assert_float_equal(expr_eval(g1->val, NULL), 1e-3, 0);
+    assert_null(u1->val);
+    check(c, elem(c, "E1.in"), E_P, "a", "0", NAN);
+    check(c, elem(c, "G1.in"), E_P, "b", "0", NAN);
+    check(c, elem(c, "U1.in"), E_P, "a", "n", NAN);
+    for (const char *const *nm = (const char *const[]){"E1", "G1", "U1", NULL}; *nm; nm++) {
+        const Elem *o = elem(c, *nm), *p = &c->elems[o->peer];
+        assert_int_equal(p->kind, E_P);
+        assert_ptr_equal(&c->elems[p->peer], o);
+    }
+}
+
 static void test_nonlinear(void **state) {
     (void)state;
     Circuit *c = load(".input in\n.model DM D Is=2e-12 n=1.5\nV1 a 0 in R=1k\nD1 a b DM pair=1\nR2 b 0 1k\n"
@@ -183,6 +206,7 @@ int main(void) {
         cmocka_unit_test(test_electrical),
         cmocka_unit_test(test_mechanical),
         cmocka_unit_test(test_pot_and_line),
+        cmocka_unit_test(test_controlled),
         cmocka_unit_test(test_nonlinear),
         cmocka_unit_test(test_contact_and_mutator),
         cmocka_unit_test(test_waveguides),

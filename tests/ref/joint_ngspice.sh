@@ -12,6 +12,7 @@
 # deck (the first is the one its .print names).
 #
 #     netlists/clipper_asym.cir  20 ms  v(out) v(mid)
+#     netlists/tubescreamer.cir  20 ms  v(out) v(n)
 #
 # (netlists/bridge.cir is not among them: ngspice 39 gives up on its
 # transient a little after its first charging pulse, "timestep too small",
@@ -44,7 +45,7 @@
 #
 #     sh tests/ref/joint_ngspice.sh [OUT.csv]
 #
-# Takes about a minute and a half.
+# Takes about three minutes.
 
 set -u
 
@@ -102,6 +103,7 @@ run() { # NAME TSTOP "VECTORS" "OPTIONS"
 }
 
 run clipper_asym 20m "v(out) v(mid)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
+run tubescreamer 20m "v(out) v(n)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 {
     echo "deck,t,v..."
     cat "$WORK/all.csv"
