@@ -1003,7 +1003,7 @@ static const char *mcoef(Ctx *x, int b, int k, int j) {
  * itself (a double voice, or a number). */
 static const char *jrow(Ctx *x, int b, int k, int j) {
     const Root *r = &x->w->roots[b];
-    if (x->jq_off[b] < 0 || x->mnum[b][k * r->nedge + j])
+    if (x->jq_off[b] < 0 || (x->mnum[b] && x->mnum[b][k * r->nedge + j]))
         return NULL;
     return format("st->c_jQ[%d]", x->jq_off[b] + (k - r->nport) * r->nedge + j);
 }
@@ -2404,7 +2404,7 @@ static void index_tree(Ctx *x) {
     x->jq_off = arena_alloc(sizeof(int) * (size_t)(w->nroots + 1));
     for (int b = 0; b < w->nroots; b++) {
         x->jq_off[b] = -1;
-        if (x->single && w->roots[b].joint && x->rfn[b]) {
+        if (x->single && w->roots[b].joint) {
             x->jq_off[b] = x->njq;
             x->njq += w->roots[b].nnl * w->roots[b].nedge;
         }
@@ -2948,6 +2948,24 @@ static const char *ic_ctl(Ctx *x) {
     return str(&b);
 }
 
+/* What root_solve stores of a joint root's nonlinear rows in c_jQ, in
+ * double, for a float voice's joint solve. */
+static const char *jq_store(Ctx *x) {
+    Buf b = {0};
+    bool any = false;
+    for (int rb = 0; rb < x->w->nroots; rb++) {
+        any |= x->jq_off[rb] >= 0 && !x->rfn[rb];
+        emit(&b, "%s{%d, %d}", rb ? ", " : "", x->rfn[rb] ? -1 : x->jq_off[rb], x->w->roots[rb].nport);
+    }
+    if (!any)
+        return "";
+    return format("            if (e[0] == EDGE_NL) { /* its row in double too: offset, ports */\n"
+                  "                static const short jq[][2] = {%s};\n"
+                  "                if (jq[rb][0] >= 0)\n"
+                  "                    st->c_jQ[jq[rb][0] + (k - jq[rb][1]) * ne + j] = out;\n"
+                  "            }\n", str(&b));
+}
+
 /* The controlled sources of the roots, for core_matrix. */
 static const char *root_ctl_table(Ctx *x) {
     if (!x->nctl)
@@ -2984,6 +3002,7 @@ static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune,
     set(t, "nl_adapt", x->nnl ? tmpl_nl_adapt : "");
     set(t, "nl_adapt_call", x->nnl ? "    nl_adapt(st, rb, A, x, piv);\n" : "");
     set(t, "ic_ctl", ic_ctl(x));
+    set(t, "jq_store", jq_store(x));
     set(t, "root_ctl_table", root_ctl_table(x));
     set(t, "root_ctl_stamp", x->nctl ? "    for (size_t c = 0; c < sizeof root_ctl / sizeof root_ctl[0]; c++)\n"
                                        "        if ((int)root_ctl[c][0] == rb)\n"

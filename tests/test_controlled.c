@@ -80,6 +80,10 @@ static const net nets[] = {
      "pot Pd b w n R=500k pos={drive}\nC4 o n 51p\n.model d914 diode Is=2.52n n=1.752\nD1 o n d914\nD2 n o d914\n"
      ".output o v(o)\n",
      NULL, 0},
+    {"ts_asym",
+     ".input in\nV1 p 0 in\nopamp U1 o p n\nR4 n a 4.7k\nC3 a 0 47n\nR6 o n 301k\nC4 o n 51p\n"
+     ".model d914 diode Is=2.52n n=1.752\nD1 o m d914\nD2 m n d914\nD3 n o d914\n.output o v(o)\n.output m v(m)\n",
+     NULL, 0},
 };
 #define NNETS ((int)(sizeof nets / sizeof nets[0]))
 
@@ -166,8 +170,17 @@ static double run_pair(const Circuit *c, const wdv_class *cls, double fs, const 
             ro[j][k] = y[j];
     }
     double db = -400;
-    for (int j = 0; j < c->nouts; j++)
+    for (int j = 0; j < c->nouts; j++) {
         db = fmax(db, err_db(vo[j], ro[j], n));
+        if (getenv("CTL_VERBOSE")) {
+            long at = 0;
+            for (long k = 0; k < n; k++)
+                if (fabs(vo[j][k] - ro[j][k]) > fabs(vo[j][at] - ro[j][at]))
+                    at = k;
+            print_message("    %s: %.1f dB, worst at %ld: voice %.17g, refsim %.17g\n", c->outs[j].name,
+                          err_db(vo[j], ro[j], n), at, vo[j][at], ro[j][at]);
+        }
+    }
     refsim_nl_info info;
     refsim_nl_stats(rs, &info);
     if (capped)
