@@ -29,6 +29,7 @@ const Prim prims[] = {
     [E_CI] = {"controlled current source", "i = gain v(probe)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CI, IC_CI},
     [E_OA] = {"op-amp output", "any current that holds v(probe) = 0", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_OA, IC_OA},
     [E_P] = {"probe", "i = 0", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_PROBE, IC_PROBE},
+    [E_CC] = {"controlled current source", "i = gain i(junction)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CC, IC_CC},
 };
 
 bool prim_at_root(const Elem *e) {

@@ -544,6 +544,8 @@ static void spice_model(Line *l) {
     int kind = block_by_keyword(k, (int)strlen(k));
     if (kind < 0 && strlen(k) == 1)
         kind = block_by_letter((char)toupper((unsigned char)k[0]));
+    if (kind < 0 && (!strcasecmp(k, "npn") || !strcasecmp(k, "pnp")))
+        kind = BK_Q;
     if (kind >= 0 && kind != BK_USE)
         spice_keys(l, kind, true);
 }
@@ -628,6 +630,8 @@ static void dir_simple(Elab *E, Line *l) {
             kind = block_by_letter(k[0]);
         if (kind < 0 && !strcasecmp(k, "diode"))
             kind = BK_D;
+        if (kind < 0 && (!strcasecmp(k, "npn") || !strcasecmp(k, "pnp")))
+            kind = BK_Q;
         if (kind < 0 || kind == BK_USE)
             error_at(l->args[0].pos, "unknown model kind '%s'", k);
         for (int i = 0; i < l->nkv; i++)
@@ -1119,11 +1123,13 @@ static void pair_diodes(Elab *E) {
     bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
     for (int i = 0; i < ne; i++) {
         Elem *a = E->elems.data[i];
-        if (gone[i] || a->kind != E_NL || a->nl->kind != NL_DIODE || a->nl->pair || a->nl->mutated)
+        if (gone[i] || a->kind != E_NL || a->nl->kind != NL_DIODE || a->nl->pair || a->nl->mutated ||
+            a->user_kind == BK_Q)
             continue;
         for (int j = i + 1; j < ne; j++) {
             Elem *b = E->elems.data[j];
             if (gone[j] || b->kind != E_NL || b->nl->kind != NL_DIODE || b->nl->pair || b->nl->mutated ||
+                b->user_kind == BK_Q ||
                 b->n[0] != a->n[1] || b->n[1] != a->n[0] || b->nl->solver != a->nl->solver)
                 continue;
             double ka[3] = {fixed(a->nl->Is), fixed(a->nl->n), fixed(a->nl->Vt)};
@@ -1478,6 +1484,8 @@ static void finish(Elab *E) {
             e->peer = elem_index(E, format("%s.in", e->name));
         else if (e->kind == E_P)
             e->peer = elem_index(E, format("%.*s", (int)n - 3, e->name));
+        else if (e->kind == E_CC) /* a transistor's NAME.f takes NAME.be's current, NAME.r NAME.bc's */
+            e->peer = elem_index(E, format("%.*s.b%c", (int)n - 2, e->name, e->name[n - 1] == 'f' ? 'e' : 'c'));
         if ((e->kind == E_W || ELEM_CONTROLLED(e->kind)) && e->peer < 0)
             die("element '%s' lost its peer", e->name);
     }

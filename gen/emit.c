@@ -166,6 +166,7 @@ typedef struct Ctx {
     int *src;        /* element -> source index or -1 */
     int nsrc;
     int nctl;        /* controlled sources and op-amps (their outputs) */
+    int ncc;         /* transistors' current-controlled sources */
     int *nl_root;    /* nonlinear index -> its root */
     int *nl_edge;    /* nonlinear index -> its edge in that root */
     int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
@@ -1031,6 +1032,15 @@ static const char *joint_groups(Ctx *x, int b) {
         int p = uf_find(up, e->p >= 0 ? e->p : nc), q = uf_find(up, e->q >= 0 ? e->q : nc);
         if (p != q)
             up[p < q ? p : q] = p < q ? q : p; /* the reference stays its set's root */
+    }
+    /* a controlled source ties what it drives and what it reads (an
+     * output's current is no leakage either): no group through one floats */
+    for (int j = 0; j < 2 * r->nctl; j++) {
+        const struct RootCtl *c = &r->ctl[j / 2];
+        int a = j % 2 ? c->cp : c->p, z = j % 2 ? c->cn : c->q;
+        int p = uf_find(up, a >= 0 ? a : nc), q = uf_find(up, z >= 0 ? z : nc);
+        if (p != q)
+            up[p < q ? p : q] = p < q ? q : p;
     }
     Buf o = {0};
     for (int grp = 0; grp < nc; grp++) {
@@ -2195,7 +2205,7 @@ static const char *ic_table(Ctx *x, int *nv) {
         int kind = prim_ic(e), nli = nl_index(x, e);
         *nv += kind == IC_CAP || kind == IC_V || kind == IC_CV || kind == IC_OA;
         if (ELEM_CONTROLLED(e->kind)) /* an output: its row of ic_ctl */
-            nli = e->kind == E_P ? -1 : nctl++;
+            nli = e->kind == E_P || e->kind == E_CC ? -1 : nctl++;
         emit(&b, "%s{%s, %d, %d, %d, %d, %d}", i ? ", " : "", ic_code(kind), e->n[0], e->n[1], n ? n->id : -1,
              e->kind == E_S ? x->sp_of[i] : n ? x->react[n->id] : nli, x->src[i]);
     }
@@ -2487,8 +2497,11 @@ static void index_tree(Ctx *x) {
             x->wtap_port[2 * (x->wt_off[e->wg] + e->pt - 1) + e->side] = x->sp_of[i];
     }
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
-    for (int i = 0; i < c->nelems; i++)
-        x->nctl += ELEM_CONTROLLED(c->elems[i].kind) && c->elems[i].kind != E_P;
+    for (int i = 0; i < c->nelems; i++) {
+        ElemKind k = c->elems[i].kind;
+        x->nctl += k == E_CV || k == E_CI || k == E_OA;
+        x->ncc += k == E_CC;
+    }
     for (int i = 0; i < c->nelems; i++)
         x->src[i] = c->elems[i].kind == E_V || c->elems[i].kind == E_I ? x->nsrc++ : -1;
 }
@@ -2932,7 +2945,7 @@ static const char *ic_ctl(Ctx *x) {
              "            static const double ic_ctl[][3] = {");
     for (int i = 0, k = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
-        if (!ELEM_CONTROLLED(e->kind) || e->kind == E_P)
+        if (!ELEM_CONTROLLED(e->kind) || e->kind == E_P || e->kind == E_CC)
             continue;
         const Elem *pr = &c->elems[e->peer];
         emit(&b, "%s{%d, %d, %s}", k++ ? ", " : "", pr->n[0], pr->n[1], lit(x, e->val ? expr_eval(e->val, NULL) : 0));
@@ -2968,7 +2981,7 @@ static const char *jq_store(Ctx *x) {
 
 /* The controlled sources of the roots, for core_matrix. */
 static const char *root_ctl_table(Ctx *x) {
-    if (!x->nctl)
+    if (!x->nctl && !x->ncc)
         return "";
     Buf b = {0};
     emit(&b, "/* Controlled sources and op-amps in the roots: root, kind, output's\n"
@@ -2980,10 +2993,31 @@ static const char *root_ctl_table(Ctx *x) {
         const Root *r = &x->w->roots[rb];
         for (int j = 0, u = r->ncore; j < r->nctl; j++) {
             const struct RootCtl *c = &r->ctl[j];
+            bool cur = c->kind == E_CI || c->kind == E_CC;
+            /* a transistor's source: gain / R on its junction's voltage */
+            double g = c->kind == E_CC ? c->gain / r->R[c->ce] : c->gain;
             emit(&b, "%s{%d, %s, %d, %d, %d, %d, %d, %s}", k++ ? ", " : "", rb,
-                 c->kind == E_CV ? "IC_CV" : c->kind == E_CI ? "IC_CI" : "IC_OA", c->p, c->q, c->cp, c->cn,
-                 c->kind == E_CI ? -1 : u, lit(x, c->gain));
-            u += c->kind != E_CI;
+                 c->kind == E_CV ? "IC_CV" : cur ? "IC_CI" : "IC_OA", c->p, c->q, c->cp, c->cn, cur ? -1 : u,
+                 lit(x, g));
+            u += !cur;
+        }
+    }
+    emit(&b, "};\n\n");
+    if (!x->ncc)
+        return str(&b);
+    /* and -gain / R on its junction's wave, an input of the root */
+    emit(&b, "/* Transistors' sources in the roots: root, the junction edge whose\n"
+             " * current each takes, the source's core unknowns p q, gain over the\n"
+             " * junction's resistance. */\n"
+             "static const double root_cc[][5] = {");
+    k = 0;
+    for (int rb = 0; rb < x->w->nroots; rb++) {
+        const Root *r = &x->w->roots[rb];
+        for (int j = 0; j < r->nctl; j++) {
+            const struct RootCtl *c = &r->ctl[j];
+            if (c->kind == E_CC)
+                emit(&b, "%s{%d, %d, %d, %d, %s}", k++ ? ", " : "", rb, c->ce, c->p, c->q,
+                     lit(x, c->gain / r->R[c->ce]));
         }
     }
     emit(&b, "};\n\n");
@@ -3004,7 +3038,14 @@ static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune,
     set(t, "ic_ctl", ic_ctl(x));
     set(t, "jq_store", jq_store(x));
     set(t, "root_ctl_table", root_ctl_table(x));
-    set(t, "root_ctl_stamp", x->nctl ? "    for (size_t c = 0; c < sizeof root_ctl / sizeof root_ctl[0]; c++)\n"
+    set(t, "ctl_column", x->ncc ? "        for (size_t c = 0; c < sizeof root_cc / sizeof root_cc[0]; c++)\n"
+                                  "            if ((int)root_cc[c][0] == rb && (int)root_cc[c][1] == j) {\n"
+                                  "                int p = (int)root_cc[c][2], q = (int)root_cc[c][3];\n"
+                                  "                if (p >= 0) x[p] += root_cc[c][4];\n"
+                                  "                if (q >= 0) x[q] -= root_cc[c][4];\n"
+                                  "            }\n"
+                                : "");
+    set(t, "root_ctl_stamp", x->nctl || x->ncc ? "    for (size_t c = 0; c < sizeof root_ctl / sizeof root_ctl[0]; c++)\n"
                                        "        if ((int)root_ctl[c][0] == rb)\n"
                                        "            ctl_stamp(A, n, (int)root_ctl[c][1], (int)root_ctl[c][2], (int)root_ctl[c][3],\n"
                                        "                      (int)root_ctl[c][4], (int)root_ctl[c][5], (int)root_ctl[c][6], root_ctl[c][7]);\n"

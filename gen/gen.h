@@ -335,11 +335,14 @@ typedef enum {
              holds the voltage across its probe `peer` at 0 */
     E_P,  /* the probe of a controlled source or op-amp: no current; its
              voltage v(n0)-v(n1) is the control */
+    E_CC, /* current-controlled current source: val * the current of
+             nonlinear element `peer` (a transistor's junction) flows n0 -> n1
+             through it */
 } ElemKind;
 
 /* Whether e is a controlled source's output or probe (they join a root
  * together and stamp its nodal equations, not its scattering edges). */
-#define ELEM_CONTROLLED(k) ((k) == E_CV || (k) == E_CI || (k) == E_OA || (k) == E_P)
+#define ELEM_CONTROLLED(k) ((k) == E_CV || (k) == E_CI || (k) == E_OA || (k) == E_P || (k) == E_CC)
 
 typedef enum {
     NL_DIODE,   /* i = Is (exp(v/(n Vt)) - 1), or 2 Is sinh(v/(n Vt)) for a pair */
@@ -617,9 +620,10 @@ typedef struct Root {
      * V sources' currents.  Active, so the root is not lossless. */
     struct RootCtl {
         int elem;      /* the output element */
-        int kind;      /* E_CV, E_CI or E_OA */
+        int kind;      /* E_CV, E_CI, E_OA or E_CC */
         int p, q;      /* output's core nodes */
-        int cp, cn;    /* probe's core nodes */
+        int cp, cn;    /* probe's core nodes (E_CC: its nonlinear edge's) */
+        int ce;        /* E_CC: the nonlinear edge whose current it takes */
         double gain;
     } *ctl;
     int nctl;

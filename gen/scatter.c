@@ -19,11 +19,15 @@ static double *core_matrix(const Root *r, const double *R, int skip, int *dim) {
     for (int k = 0, x = nc; k < r->nctl; k++) {
         const struct RootCtl *c = &r->ctl[k];
         int p = c->p, q = c->q, cp = c->cp, cn = c->cn;
-        if (c->kind == E_CI) { /* g v(probe) leaves p, enters q */
-            if (p >= 0 && cp >= 0) A[p * D + cp] += c->gain;
-            if (p >= 0 && cn >= 0) A[p * D + cn] -= c->gain;
-            if (q >= 0 && cp >= 0) A[q * D + cp] -= c->gain;
-            if (q >= 0 && cn >= 0) A[q * D + cn] += c->gain;
+        if (c->kind == E_CI || c->kind == E_CC) { /* g v(probe) leaves p, enters q */
+            /* a junction's current is (v - b) / R at its edge: gain / R on
+             * its voltage here, its wave b in the inputs (scatter_root);
+             * none when the edge is the one left out */
+            double g = c->kind == E_CI ? c->gain : c->ce == skip ? 0 : c->gain / R[c->ce];
+            if (p >= 0 && cp >= 0) A[p * D + cp] += g;
+            if (p >= 0 && cn >= 0) A[p * D + cn] -= g;
+            if (q >= 0 && cp >= 0) A[q * D + cp] -= g;
+            if (q >= 0 && cn >= 0) A[q * D + cn] += g;
             continue;
         }
         /* its current x leaves p, enters q; its row: v(p) - v(q) - gain
@@ -76,6 +80,13 @@ int scatter_thevenin(const Root *r, const double *R, int k, double *Rth) {
     const RootEdge *e = &r->edge[k];
     if (e->p >= 0) B[e->p] = 1;
     if (e->q >= 0) B[e->q] = -1;
+    /* the unit current flows through edge k from q to p: a source that
+     * takes gain times its current sends -gain from its p to its q */
+    for (int j = 0; j < r->nctl; j++)
+        if (r->ctl[j].kind == E_CC && r->ctl[j].ce == k) {
+            if (r->ctl[j].p >= 0) B[r->ctl[j].p] += r->ctl[j].gain;
+            if (r->ctl[j].q >= 0) B[r->ctl[j].q] -= r->ctl[j].gain;
+        }
     if (solve(A, D, B, 1) < 0)
         return -1;
     *Rth = (e->p >= 0 ? B[e->p] : 0) - (e->q >= 0 ? B[e->q] : 0);
@@ -103,6 +114,13 @@ int scatter_root(const Root *r, const double *R, double *M) {
             if (p >= 0) BT(p, k) -= 1;
             if (q >= 0) BT(q, k) += 1;
         }
+    }
+    for (int j = 0; j < r->nctl; j++) { /* a junction's wave in the current its source takes */
+        const struct RootCtl *c = &r->ctl[j];
+        if (c->kind != E_CC)
+            continue;
+        if (c->p >= 0) BT(c->p, c->ce) += c->gain / R[c->ce];
+        if (c->q >= 0) BT(c->q, c->ce) -= c->gain / R[c->ce];
     }
     if (solve(A, D, B, ne) < 0)
         return -1;
@@ -490,10 +508,11 @@ void scatter_print_tableau(const Wdf *w, FILE *out) {
         for (int k = 0; k < r->nctl; k++) {
             const struct RootCtl *x = &r->ctl[k];
 #define NAME(n) c->nodes[(n) >= 0 ? r->core_node[n] : r->ref_node]
-            fprintf(out, "  %s: %s, %s -> %s, %s v(%s, %s)\n", c->elems[x->elem].name,
+            fprintf(out, "  %s: %s, %s -> %s, %s%s\n", c->elems[x->elem].name,
                     x->kind == E_OA ? "op-amp output" : x->kind == E_CV ? "controlled V" : "controlled I",
                     NAME(x->p), NAME(x->q), x->kind == E_OA ? "holding 0 =" : format("gain %.6g times", x->gain),
-                    NAME(x->cp), NAME(x->cn));
+                    x->kind == E_CC ? format(" i(%s)", c->elems[r->edge[x->ce].elem].name)
+                                    : format(" v(%s, %s)", NAME(x->cp), NAME(x->cn)));
 #undef NAME
         }
         if (r->nctl) /* its KCL would hold the outputs' currents, which are not edges */

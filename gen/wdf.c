@@ -376,7 +376,12 @@ static void check_nonlinear(Wdf *wd, Root *r) {
 static void adapt_nonlinear(Wdf *wd, Root *r, int k) {
     const Elem *e = &wd->c->elems[r->edge[k].elem];
     double Rth;
-    if (scatter_thevenin(r, r->R, k, &Rth) < 0 || !(Rth < 1e300))
+    int ok = scatter_thevenin(r, r->R, k, &Rth);
+    /* an active joint root may present no positive resistance to an
+     * edge: it keeps the one it has, which only conditions the solve */
+    if (r->joint && r->nctl && !(ok == 0 && Rth > 0 && Rth < 1e300))
+        return;
+    if (ok < 0 || !(Rth < 1e300))
         error_at(e->pos, "%s '%s' has no closed path through the rest of the network: no current can flow "
                  "through it", block_desc[e->user_kind].desc, e->name);
     if (!(Rth > 0))
@@ -473,8 +478,14 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl,
         x->q = core[loc[E[i].w]];
         x->cp = core[loc[pr->n[0]]];
         x->cn = core[loc[pr->n[1]]];
+        x->ce = -1;
+        for (int k = 0; k < r->nedge && e->kind == E_CC; k++)
+            if (r->edge[k].kind == EDGE_NL && r->edge[k].elem == e->peer)
+                x->ce = k;
+        if (e->kind == E_CC && x->ce < 0)
+            die("'%s' is not at the root of its junction", e->name);
         x->gain = e->val ? expr_eval(e->val, NULL) : 0;
-        r->nx += e->kind != E_CI;
+        r->nx += e->kind == E_CV || e->kind == E_OA;
     }
     check_nonlinear(wd, r);
     r->M = arena_alloc(sizeof(double) * (size_t)(r->nedge * r->nedge));
@@ -597,7 +608,7 @@ static void merge_controlled(const Circuit *c, int *block, int *nblocks) {
     bool any = false;
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
-        if (e->kind != E_P)
+        if (e->kind != E_P && e->kind != E_CC) /* a probe, or a transistor's source: with its junction */
             continue;
         int a = block[i], b = block[e->peer];
         if (a < 0 || b < 0)

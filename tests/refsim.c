@@ -637,6 +637,25 @@ static void nl_residual(refsim *s, const real *x, const real *rhs, real *r,
         if (J)
             stamp_g(J, N, a, b, g);
     }
+    for (int e = 0; e < c->nelems; e++) { /* a transistor's sources: gain times a junction's current */
+        const Elem *el = &c->elems[e], *d = el->kind == E_CC ? &c->elems[el->peer] : NULL;
+        if (!d || self_loop(el))
+            continue;
+        int a = d->n[0], b = d->n[1], p = el->n[0], q = el->n[1];
+        real v = (a ? x[a - 1] : 0.0) - (b ? x[b - 1] : 0.0), g;
+        real i = s->val[e] * nl_eval(s, el->peer, v, &g);
+        g *= s->val[e];
+        if (p)
+            r[p - 1] += i;
+        if (q)
+            r[q - 1] -= i;
+        if (!J)
+            continue;
+        if (p && a) J[(p - 1) * N + a - 1] += g;
+        if (p && b) J[(p - 1) * N + b - 1] -= g;
+        if (q && a) J[(q - 1) * N + a - 1] -= g;
+        if (q && b) J[(q - 1) * N + b - 1] += g;
+    }
 }
 
 static real sumsq(const real *r, int n) {
@@ -898,7 +917,7 @@ static void initial_state(refsim *s) {
             br0[e] = N++;
         vedge[e] = el->kind == E_C || (el->kind == E_V && !has_value(el)) || el->kind == E_CV || el->kind == E_OA;
         iedge[e] = el->kind == E_L || (el->kind == E_I && !has_value(el)) ||
-                   is_nl(el) || el->kind == E_CI || el->kind == E_P;
+                   is_nl(el) || el->kind == E_CI || el->kind == E_P || el->kind == E_CC;
         if (has_flux(el))
             s->cx[e] = ic_x(s, el->n[0]) - ic_x(s, el->n[1]);
     }
@@ -991,7 +1010,7 @@ static void initial_state(refsim *s) {
 
 int refsim_linear_kind(int kind) {
     return kind == E_R || kind == E_C || kind == E_L || kind == E_V || kind == E_I || kind == E_CV || kind == E_CI ||
-           kind == E_OA || kind == E_P;
+           kind == E_OA || kind == E_P || kind == E_CC;
 }
 
 int refsim_can_simulate(const Circuit *c) {
@@ -1057,7 +1076,8 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
         if ((el->kind == E_L || el->kind == E_V || el->kind == E_CV || el->kind == E_OA) && !self_loop(el))
             s->br[e] = N++;
         vedge[e] = (el->kind == E_V && !has_value(el)) || el->kind == E_CV || el->kind == E_OA;
-        iedge[e] = (el->kind == E_I && !has_value(el)) || nl_open_edge(el) || el->kind == E_CI || el->kind == E_P;
+        iedge[e] = (el->kind == E_I && !has_value(el)) || nl_open_edge(el) || el->kind == E_CI || el->kind == E_P ||
+                   el->kind == E_CC;
         if (is_nl(el))
             s->nnl++;
     }
@@ -1191,11 +1211,14 @@ void refsim_step(refsim *s, const double *in, double *out) {
             s->d[e] = dn;
             break;
         }
-        case E_CV: case E_CI: case E_OA: { /* the work it does, as a source's */
+        case E_CV: case E_CI: case E_OA: case E_CC: { /* the work it does, as a source's */
             const Elem *pr = &c->elems[el->peer];
+            real vp = s->nodev[pr->n[0]] - s->nodev[pr->n[1]], g;
             s->v[e] = vv;
-            s->i[e] = el->kind == E_CI ? s->val[e] * (s->nodev[pr->n[0]] - s->nodev[pr->n[1]])
-                                       : self_loop(el) ? 0.0 : rhs[s->br[e]];
+            s->i[e] = el->kind == E_CI   ? s->val[e] * vp
+                      : el->kind == E_CC ? s->val[e] * nl_eval(s, el->peer, vp, &g)
+                      : self_loop(el)    ? 0.0
+                                         : rhs[s->br[e]];
             pw -= 0.25 * (vv + pv) * (s->i[e] + pi);
             break;
         }

@@ -80,6 +80,11 @@ static const net nets[] = {
      "pot Pd b w n R=500k pos={drive}\nC4 o n 51p\n.model d914 diode Is=2.52n n=1.752\nD1 o n d914\nD2 n o d914\n"
      ".output o v(o)\n",
      NULL, 0},
+    {"pushpull",
+     ".input in\nV1 s 0 in\nR0 s 0 1k\nE1 d 0 s 0 10\nRb d x 1k\nVp vcc 0 9\nVn vee 0 -9\n"
+     ".model qn npn Is=1e-14 BF=200 BR=5\n.model qp pnp Is=2e-14 BF=150 BR=3 NF=1.1\nQ1 vcc x o qn\nQ2 vee x o qp\n"
+     "RL o 0 100\nCL o 0 1u\n.output o v(o)\n.output x v(x)\n",
+     NULL, 0},
     {"ts_asym",
      ".input in\nV1 p 0 in\nopamp U1 o p n\nR4 n a 4.7k\nC3 a 0 47n\nR6 o n 301k\nC4 o n 51p\n"
      ".model d914 diode Is=2.52n n=1.752\nD1 o m d914\nD2 m n d914\nD3 n o d914\n.output o v(o)\n.output m v(m)\n",
