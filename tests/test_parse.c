@@ -180,8 +180,8 @@ static int run_wdc(const char *args, char **out) {
 
 static void test_unknown_kind(void **state) {
     (void)state;
-    expect_error(".input in\n" SRC "Q1 a b 1k\n",
-                 "t.wdn:3:1: error: unknown element kind 'Q1'");
+    expect_error(".input in\n" SRC "Y1 a b 1k\n",
+                 "t.wdn:3:1: error: unknown element kind 'Y1'");
     expect_error(".input in\n" SRC "  frob F1 a 0\n",
                  "t.wdn:3:3: error: unknown element kind 'frob'");
     expect_error(".input in\n" SRC "R1 a 0 1k\n+ C2 a 0 1u\n",
