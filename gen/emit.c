@@ -167,6 +167,9 @@ typedef struct Ctx {
     int nsrc;
     int nctl;        /* controlled sources and op-amps (their outputs) */
     int ncc;         /* transistors' current-controlled sources */
+    double *nlop;    /* a deck's operating point with nonlinear elements or
+                        controlled sources (dcop_nonlinear): each element's
+                        current there, or NULL */
     int *nl_root;    /* nonlinear index -> its root */
     int *nl_edge;    /* nonlinear index -> its edge in that root */
     int *nl_first;   /* root -> nonlinear index of its first nonlinear edge */
@@ -2029,7 +2032,7 @@ static int stamp_source(Ctx *x, Sx *sx, Lin *L, int i, Sym *val, Sym *v) {
 
 static const char *settle_static(Ctx *x, bool force, const char *probes) {
     const Circuit *c = x->c;
-    if (x->nctl) /* the straight-line solve takes conductances and sources only */
+    if (x->nctl || x->nlop) /* the straight-line solve takes conductances and sources only */
         return NULL;
     Sx *sx = sx_new("u");
     Lin *L = lin_new(sx, c->nnodes - 1);
@@ -2189,8 +2192,74 @@ static bool dcop_try(Ctx *x, bool gmin) {
     return true;
 }
 
+/* A deck with nonlinear elements or controlled sources starts from its
+ * DC operating point too, found here (dcop.c) at the default params:
+ * dcop() writes each reactance's value there, and settle takes each
+ * diode, curve and transistor source as a source of its current there
+ * (x->nlop), so that the capacitors start with no current through them. */
+static const char *dcop_nonlinear(Ctx *x) {
+    const Circuit *c = x->c;
+    if (!c->deck || c->uic || !x->settle || !x->nreact || !(x->nnl || x->nctl || x->ncc) || c->nwgs || x->nline)
+        return NULL;
+    double *p = circuit_defaults(c), *drive = arena_alloc(sizeof(double) * (size_t)(c->nelems + 1));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        if (e->kind != E_V && e->kind != E_I)
+            continue;
+        if (e->input < 0)
+            drive[i] = elem_drive(c, e, p);
+        else if (c->input_fn[e->input])
+            drive[i] = srcfn_at(c->input_fn[e->input], 0, 1 / c->rate);
+    }
+    double *nodev = arena_alloc(sizeof(double) * (size_t)(c->nnodes + 1));
+    double *cur = arena_alloc(sizeof(double) * (size_t)(c->nelems + 1));
+    if (!dcop_solve(c, p, drive, nodev, cur)) {
+        note_at(c->elems[0].pos, "the deck's DC operating point was not found: its voice starts from rest");
+        return NULL;
+    }
+    bool rest = true; /* where the operating point is rest, the voice starts there anyway */
+    for (int n = 0; n < c->nnodes; n++)
+        rest &= nodev[n] == 0;
+    for (int i = 0; i < c->nelems; i++)
+        rest &= cur[i] == 0;
+    if (rest)
+        return NULL;
+    Buf b = {0};
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        const WNode *n = x->w->leaf_of[i];
+        if (n && prim_ic(e) == IC_CAP)
+            emit(&b, "    react[%d] = %s; /* %s */\n", x->react[n->id], lit(x, nodev[e->n[0]] - nodev[e->n[1]]), e->name);
+        else if (n && prim_ic(e) == IC_IND)
+            emit(&b, "    react[%d] = %s; /* %s */\n", x->react[n->id], lit(x, cur[i]), e->name);
+    }
+    x->nlop = cur;
+    return format("/* The deck's DC operating point, as SPICE's transient starts from it:\n"
+                  " * capacitors open, inductors shorted, the sources at their drives (an\n"
+                  " * input's at its first value), the nonlinear elements and controlled\n"
+                  " * sources solved with them when the voice was compiled (at the\n"
+                  " * default params); each reactance's value into react for settle. */\n"
+                  "static void dcop(const state *st UNUSED, double *react) {\n%s}\n", str(&b));
+}
+
 static const char *dcop_static(Ctx *x) {
-    return dcop_try(x, false) || dcop_try(x, true) ? x->dcop : NULL;
+    return dcop_try(x, false) || dcop_try(x, true) ? x->dcop : dcop_nonlinear(x);
+}
+
+/* settle's case of diodes, curves and transistors' sources: open at rest,
+ * or at a deck's operating point the current they carry there. */
+static const char *ic_open(Ctx *x) {
+    if (!x->nlop)
+        return "        case IC_OPEN: break; /* a diode or curve at rest carries no current */\n";
+    Buf b = {0};
+    for (int i = 0; i < x->c->nelems; i++)
+        emit(&b, "%s%s", i ? ", " : "", lit(x, x->nlop[i]));
+    return format("        case IC_OPEN: case IC_CC: { /* the current it carries at the operating point */\n"
+                  "            static const double op[] = {%s};\n"
+                  "            if (p >= 0) x[p] -= op[k];\n"
+                  "            if (q >= 0) x[q] += op[k];\n"
+                  "            break;\n"
+                  "        }\n", str(&b));
 }
 
 static const char *ic_table(Ctx *x, int *nv) {
@@ -3036,6 +3105,7 @@ static void solve_holes(Ctx *x, Holes *t, const char *force, const char *retune,
     set(t, "nl_adapt", x->nnl ? tmpl_nl_adapt : "");
     set(t, "nl_adapt_call", x->nnl ? "    nl_adapt(st, rb, A, x, piv);\n" : "");
     set(t, "ic_ctl", ic_ctl(x));
+    set(t, "ic_open", ic_open(x));
     set(t, "jq_store", jq_store(x));
     set(t, "root_ctl_table", root_ctl_table(x));
     set(t, "ctl_column", x->ncc ? "        for (size_t c = 0; c < sizeof root_cc / sizeof root_cc[0]; c++)\n"

@@ -653,6 +653,18 @@ void wdf_dump(const Wdf *w, FILE *out);
 
 /* scatter.c */
 
+/* Solves A x = b (n x n, row-major; both overwritten, x into b): 0, or -1
+ * if A is singular. */
+int scatter_dense_solve(double *A, int n, double *b);
+
+/* dcop.c: the DC operating point of a circuit with nonlinear elements
+ * and controlled sources (capacitors open, inductors shorted, element i's
+ * source at drive[i]): node voltages (nodev[nnodes], ground 0) and each
+ * element's current from n0 to n1 (cur[nelems]: sources, inductors,
+ * nonlinear elements, controlled sources); false if it is not found or
+ * the circuit has lines, waveguides or stored laws. */
+bool dcop_solve(const Circuit *c, const double *params, const double *drive, double *nodev, double *cur);
+
 /* Solves the root adaptor's matrix M for port resistances R (one per port
  * edge) and returns 0, or -1 if the core is singular. */
 int scatter_root(const Root *r, const double *R, double *M);

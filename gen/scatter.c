@@ -73,6 +73,8 @@ static int solve(double *A, int D, double *B, int nrhs) {
     return 0;
 }
 
+int scatter_dense_solve(double *A, int n, double *b) { return solve(A, n, b, 1); }
+
 int scatter_thevenin(const Root *r, const double *R, int k, double *Rth) {
     int D;
     double *A = core_matrix(r, R, k, &D);

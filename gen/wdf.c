@@ -411,6 +411,13 @@ static void adapt_root(Wdf *wd, Root *r) {
     for (int sweep = 0; sweep < 3; sweep++)
         for (int k = k0; k < k1; k++)
             adapt_nonlinear(wd, r, k);
+    /* in an active root a junction's current, (a - b) / 2R, also drives
+     * the sources that take it, gain / R times: a resistance far below
+     * the network's leaves that current a few digits, so none is below a
+     * hundredth of the ports' mean (the Fuzz Face's input junction would
+     * otherwise sit at 0.03 Ohm at 192 kHz, behind its coupling capacitor) */
+    for (int k = k0; k < k1 && r->nctl; k++)
+        r->R[k] = fmax(r->R[k], 1e-2 * R0);
 }
 
 static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl, const int *loc) {

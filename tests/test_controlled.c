@@ -361,6 +361,48 @@ static void test_diagnostics(void **state) {
     }
 }
 
+/* The Fuzz Face deck starts at its DC operating point: with its input
+ * held at 0 its nodes stay where they start (within what the joint
+ * solve's tolerance, times the pair's gain of about 300, leaves), where
+ * from rest its capacitors would charge for a quarter of a second; and
+ * its transistors are biased there (Q1's base at a junction's drop, Q2's
+ * collector between the rails). */
+static void test_operating_point(void **state) {
+    (void)state;
+    char dir[64];
+    assert_int_equal(tl_temp_dir(dir, "op"), 0);
+    FILE *f = fopen("netlists/fuzzface.cir", "r");
+    assert_non_null(f);
+    char text[4096] = "", line[512];
+    while (fgets(line, sizeof line, f))
+        if (strncmp(line, ".print", 6) && strncmp(line, ".end", 4))
+            strcat(text, line);
+    fclose(f);
+    strcat(text, ".print tran v(b1) v(c1) v(c2) v(out)\n.end\n");
+    tl_voice v;
+    assert_int_equal(tl_voice_build(tl_write_file(dir, "ff.cir", text), 0, &v), 0);
+    void *st = tl_state_new(v.cls, 48000);
+    assert_non_null(st);
+    enum { N = 4800 };
+    static double x[N], y[4][N];
+    const double *ip[1] = {x};
+    double *op[4] = {y[0], y[1], y[2], y[3]};
+    v.cls->process(st, ip, op, N);
+    double drift = 0;
+    for (int k = 0; k < 4; k++)
+        for (int n = 0; n < N; n++)
+            drift = fmax(drift, fabs(y[k][n] - y[k][0]));
+    print_message("operating point: v(b1) %.6f, v(c1) %.6f, v(c2) %.6f, v(out) %.3g V; drift over 0.1 s %.3g V\n",
+                  y[0][0], y[1][0], y[2][0], y[3][0], drift);
+    assert_true(drift < 1e-4);
+    assert_true(y[0][0] > 0.5 && y[0][0] < 0.7);
+    assert_true(y[2][0] > 1 && y[2][0] < 8);
+    assert_true(fabs(y[3][0]) < 1e-4);
+    tl_state_free(st);
+    tl_voice_free(&v);
+    tl_remove_dir(dir);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_closed_forms),
@@ -368,6 +410,7 @@ int main(void) {
         cmocka_unit_test(test_diagnostics),
         cmocka_unit_test(test_against_refsim),
         cmocka_unit_test(test_param_changes),
+        cmocka_unit_test(test_operating_point),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

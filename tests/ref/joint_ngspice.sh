@@ -13,6 +13,7 @@
 #
 #     netlists/clipper_asym.cir  20 ms  v(out) v(mid)
 #     netlists/tubescreamer.cir  20 ms  v(out) v(n)
+#     netlists/fuzzface.cir      20 ms  v(out) v(c2)
 #
 # (netlists/bridge.cir is not among them: ngspice 39 gives up on its
 # transient a little after its first charging pulse, "timestep too small",
@@ -21,8 +22,8 @@
 # bridge is checked against refsim's converged solve in test_joint.)
 #
 # Each deck is run as written, its .tran and .print lines replaced by a
-# .control block (the rate and length above), from power-on (the IC= of
-# its elements left out).  At ngspice's default
+# .control block (the rate and length above), from its DC operating point
+# (the IC= of its elements left out), as the voice starts.  At ngspice's default
 # temperature of 27 C, which is also where wdc reads a deck's diodes
 # (kT/q with SPICE's constants); their models give IS and N only, as the
 # voice has them.  What differs from the voice's diode
@@ -45,7 +46,7 @@
 #
 #     sh tests/ref/joint_ngspice.sh [OUT.csv]
 #
-# Takes about three minutes.
+# Takes about four minutes.
 
 set -u
 
@@ -104,6 +105,7 @@ run() { # NAME TSTOP "VECTORS" "OPTIONS"
 
 run clipper_asym 20m "v(out) v(mid)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 run tubescreamer 20m "v(out) v(n)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
+run fuzzface 20m "v(out) v(c2)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 {
     echo "deck,t,v..."
     cat "$WORK/all.csv"
