@@ -6,12 +6,13 @@
  * ngspice's transient of netlists/clipper_asym.cir (v(out), and v(mid)
  * between its two diodes in series), of netlists/tubescreamer.cir
  * (v(out), and v(n) at the op-amp's inverting input) and of
- * netlists/fuzzface.cir (v(out), and v(c2) at Q2's collector) over 20 ms
+ * netlists/fuzzface.cir (v(out), and v(c2) at Q2's collector) and of
+ * netlists/bigmuff.cir (v(out), and v(c) at its collector) over 20 ms
  * from each deck's DC operating point (rest for the first two), sampled
  * at t = m/48000 s, with a 10 ns maximum step (its own error, which the
  * script prints, is below 4e-10 V for the clipper, 1.2e-8 V for the Tube
- * Screamer, whose 51 pF feedback ngspice steps less finely, and 8.7e-7 V
- * on the Fuzz Face's 6 V swings).  (The bridge deck is not among them: ngspice gives up on
+ * Screamer, whose 51 pF feedback ngspice steps less finely, 8.7e-7 V on
+ * the Fuzz Face's 6 V swings and 1.5e-9 V for the Big Muff stage).  (The bridge deck is not among them: ngspice gives up on
  * its transient; see the script.)
  *
  * The deck is read by bin/wdc as written (with a .print naming those
@@ -40,11 +41,15 @@
  *     tubescreamer  v(n)    -165.4 dB   -186.3 dB  13.4
  *     fuzzface      v(out)   -55.9 dB    -86.6 dB  34.5 (48 to 192 kHz)
  *     fuzzface      v(c2)    -61.0 dB    -92.9 dB  39.4
+ *     bigmuff       v(out)   -60.6 dB    -84.7 dB  16.0
+ *     bigmuff       v(c)     -66.4 dB    -90.5 dB  16.0
  *
  * (The Fuzz Face's error falls 9.2, then 3.7 times from 48 to 96 to 192
  * kHz; past that ngspice's own error, about -95 dB, is as large.  Its
  * first sample, the operating point the compiler found, is v(c2) =
- * 3.2859302 V against ngspice's 3.2859314 V.)
+ * 3.2859302 V against ngspice's 3.2859314 V; the Big Muff stage's v(c)
+ * 0.8798188 V against 0.8798200 V, and its error falls 4.0 times a
+ * doubling from 48 to 384 kHz.)
  *
  * (v(n) follows v(in) within v(out) / 1e6, the E's open-loop gain.)
  *
@@ -92,6 +97,7 @@ static const deck decks[] = {
     {"clipper_asym", "v(out) v(mid)", 2, 0.02, {-75.5, -75.5}, {-100, -100}, {1, 4}},
     {"tubescreamer", "v(out) v(n)", 2, 0.02, {-49.5, -162.5}, {-70.5, -183.5}, {2, 8}},
     {"fuzzface", "v(out) v(c2)", 2, 0.02, {-53, -58}, {-83.5, -90}, {1, 4}},
+    {"bigmuff", "v(out) v(c)", 2, 0.02, {-57.5, -63.5}, {-81.5, -87.5}, {1, 4}},
 };
 #define NDECKS ((int)(sizeof decks / sizeof decks[0]))
 

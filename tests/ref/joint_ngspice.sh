@@ -14,6 +14,7 @@
 #     netlists/clipper_asym.cir  20 ms  v(out) v(mid)
 #     netlists/tubescreamer.cir  20 ms  v(out) v(n)
 #     netlists/fuzzface.cir      20 ms  v(out) v(c2)
+#     netlists/bigmuff.cir       20 ms  v(out) v(c)
 #
 # (netlists/bridge.cir is not among them: ngspice 39 gives up on its
 # transient a little after its first charging pulse, "timestep too small",
@@ -106,6 +107,7 @@ run() { # NAME TSTOP "VECTORS" "OPTIONS"
 run clipper_asym 20m "v(out) v(mid)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 run tubescreamer 20m "v(out) v(n)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 run fuzzface 20m "v(out) v(c2)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
+run bigmuff 20m "v(out) v(c)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 {
     echo "deck,t,v..."
     cat "$WORK/all.csv"
