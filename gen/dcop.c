@@ -11,7 +11,8 @@
  * conduction moves by the log of it (SPICE's limiting), a step that does
  * not lower the residual is halved; the sources are raised from 0 to
  * their values in stages (source stepping) when the full values do not
- * converge from rest. */
+ * converge from rest.  Bounded: at most DC_MAXN unknowns (a dense solve
+ * each step) and DC_BUDGET Newton iterations in all. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,7 +20,9 @@
 #include "gen.h"
 
 #define DC_GMIN 1e-12
-#define DC_MAXIT 200
+#define DC_MAXIT 200     /* Newton iterations at one source scale */
+#define DC_BUDGET 2000   /* and over all of them */
+#define DC_MAXN 160      /* unknowns: a dense solve of more would be slow */
 
 typedef struct Dc {
     const Circuit *c;
@@ -28,6 +31,7 @@ typedef struct Dc {
     int *br;       /* element -> its branch unknown, or -1 */
     double *A, *F, *x, *dx, *xt;
     double scale;  /* the sources' share, 0..1 */
+    int iters;     /* Newton iterations so far */
 } Dc;
 
 /* Current from n0 to n1 of nonlinear element e at voltage v, its slope in *g. */
@@ -166,7 +170,7 @@ static bool newton(Dc *d) {
     int N = d->N;
     eval(d, d->x);
     double f0 = norm2(d->F, N);
-    for (int it = 0; it < DC_MAXIT; it++) {
+    for (int it = 0; it < DC_MAXIT && d->iters++ < DC_BUDGET; it++) {
         for (int i = 0; i < N; i++)
             d->dx[i] = -d->F[i];
         if (scatter_dense_solve(d->A, N, d->dx) < 0)
@@ -203,6 +207,8 @@ bool dcop_solve(const Circuit *c, const double *params, const double *drive, dou
         d.br[i] = k == E_V || k == E_L || k == E_CV || k == E_OA ? N++ : -1;
     }
     d.N = N;
+    if (N > DC_MAXN)
+        return false;
     d.A = arena_alloc(sizeof(double) * (size_t)(N * N + 1));
     d.F = arena_alloc(sizeof(double) * (size_t)(N + 1));
     d.x = arena_alloc(sizeof(double) * (size_t)(N + 1));
@@ -216,7 +222,7 @@ bool dcop_solve(const Circuit *c, const double *params, const double *drive, dou
     if (!ok)
         memset(d.x, 0, sizeof(double) * (size_t)N);
     double *good = arena_alloc(sizeof(double) * (size_t)(N + 1));
-    while (!ok && step > 1e-4) {
+    while (!ok && step > 1e-4 && d.iters < DC_BUDGET) {
         memcpy(good, d.x, sizeof(double) * (size_t)N);
         d.scale = fmin(1, at + step);
         if (newton(&d)) {

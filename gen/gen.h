@@ -661,8 +661,9 @@ int scatter_dense_solve(double *A, int n, double *b);
  * and controlled sources (capacitors open, inductors shorted, element i's
  * source at drive[i]): node voltages (nodev[nnodes], ground 0) and each
  * element's current from n0 to n1 (cur[nelems]: sources, inductors,
- * nonlinear elements, controlled sources); false if it is not found or
- * the circuit has lines, waveguides or stored laws. */
+ * nonlinear elements, controlled sources); false if it is not found
+ * within its bounds (160 unknowns, 2000 Newton iterations) or the circuit
+ * has lines, waveguides or stored laws. */
 bool dcop_solve(const Circuit *c, const double *params, const double *drive, double *nodev, double *cur);
 
 /* Solves the root adaptor's matrix M for port resistances R (one per port

@@ -403,6 +403,37 @@ static void test_operating_point(void **state) {
     tl_remove_dir(dir);
 }
 
+/* The operating point's dense solve is bounded: a deck of more than 160
+ * unknowns is not solved for it (the voice starts from rest, and the
+ * compiler says so) rather than taking the cube of its size. */
+static void test_operating_point_bounded(void **state) {
+    (void)state;
+    char dir[64];
+    assert_int_equal(tl_temp_dir(dir, "opbig"), 0);
+    char *text = malloc(1 << 16);
+    assert_non_null(text);
+    int len = sprintf(text, "long ladder\nV1 in 0 SIN(0 1 220)\nRin in n0 1k\n");
+    for (int k = 0; k < 160; k++)
+        len += sprintf(text + len, "R%d n%d n%d 100\nC%d n%d 0 1n\n", k + 1, k, k + 1, k + 1, k + 1);
+    sprintf(text + len, "D1 n160 0 DM\n.model DM D(IS=1n N=1.7)\n.tran 20.8333u 0.01\n.print tran v(n160)\n.end\n");
+    const char *path = tl_write_file(dir, "ladder.cir", text);
+    char cmd[512], log[128];
+    snprintf(log, sizeof log, "%s/log", dir);
+    snprintf(cmd, sizeof cmd, "bin/wdc %s -o %s/v 2>%s", path, dir, log);
+    assert_int_equal(tl_system(cmd), 0);
+    FILE *f = fopen(log, "r");
+    assert_non_null(f);
+    char line[512];
+    bool noted = false;
+    while (fgets(line, sizeof line, f))
+        noted |= strstr(line, "ladder.cir:2:1: note: the deck's DC operating point was not found: its voice starts "
+                              "from rest") != NULL;
+    fclose(f);
+    assert_true(noted);
+    free(text);
+    tl_remove_dir(dir);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_closed_forms),
@@ -411,6 +442,7 @@ int main(void) {
         cmocka_unit_test(test_against_refsim),
         cmocka_unit_test(test_param_changes),
         cmocka_unit_test(test_operating_point),
+        cmocka_unit_test(test_operating_point_bounded),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
