@@ -122,9 +122,10 @@ build/tests/test_prepare_tsan: tests/test_prepare.c runtime/engine.c runtime/wdr
 
 bench: deps
 	sh scripts/install-bench-deps.sh
-	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench build/bench/paramblock build/bench/compilebench
+	$(MAKE) all build/bench/bench build/bench/nlbench build/bench/deckbench build/bench/stkbench build/bench/rtbench build/bench/spacebench build/bench/treebench build/bench/surfbench build/bench/paramblock build/bench/compilebench
 	build/bench/bench $(NETLISTS) tests/nets/idle_without.wdn tests/nets/idle_with.wdn tests/nets/hammers_one.wdn tests/nets/hammers_eight.wdn
 	build/bench/nlbench $(NETLISTS)
+	build/bench/deckbench netlists/*.cir netlists/diode_clipper.wdn
 	build/bench/stkbench netlists/pluck.wdn
 	build/bench/rtbench
 	build/bench/spacebench
@@ -137,6 +138,10 @@ build/bench/bench: build/bench/bench.o build/bench/benchlib.o $(TLIB_OBJS) build
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 build/bench/nlbench: build/bench/nlbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
+	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
+
+# The SPICE decks' voices: ns/sample, Newton steps of the joint solves, error against refsim.
+build/bench/deckbench: build/bench/deckbench.o build/bench/benchlib.o $(TLIB_OBJS) build/libwdc.a build/libwdrt.a
 	$(CC) $(CFLAGS) -o $@ $^ -lcmocka $(LDLIBS)
 
 # What a param change costs the audio thread: inline, and with prepare off it.

@@ -30,6 +30,8 @@ const Prim prims[] = {
     [E_OA] = {"op-amp output", "any current that holds v(probe) = 0", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_OA, IC_OA},
     [E_P] = {"probe", "i = 0", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_PROBE, IC_PROBE},
     [E_CC] = {"controlled current source", "i = gain i(junction)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CC, IC_CC},
+    [E_XF] = {"transformer winding", "v = n v(probe); the probe draws -n i", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_XF,
+              IC_XF},
 };
 
 bool prim_at_root(const Elem *e) {

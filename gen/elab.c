@@ -52,6 +52,7 @@ typedef struct Elab {
     Vec names;     /* Elem names' first positions, parallel to elems */
     Vec incstack;  /* const char* resolved paths being included */
     Vec mutators;  /* Mutator* */
+    Vec couplings; /* Coupling* */
     Vec wgs;       /* Waveguide* */
     /* names -> indices into the vectors above */
     Map node_ix, param_ix, input_ix, model_ix, block_ix, out_ix;
@@ -692,6 +693,7 @@ const char *lower_prefix(Lower *L) { return L->S->prefix; }
 double lower_rate(Lower *L) { return L->E->c->rate; }
 
 void lower_add_mutator(Lower *L, Mutator *m) { vec_push(&L->E->mutators, m); }
+void lower_add_coupling(Lower *L, Coupling *k) { vec_push(&L->E->couplings, k); }
 
 int lower_add_waveguide(Lower *L, Waveguide *w) {
     vec_push(&L->E->wgs, w);
@@ -1110,6 +1112,190 @@ static void mutate(Elab *E) {
     index_elems(E);
 }
 
+/* A node of its own for what elaboration adds, named after `base`. */
+static int fresh_node(Elab *E, const char *base) {
+    const char *name = format("%s.x", base);
+    while (map_get(&E->node_ix, name) >= 0)
+        name = format("%s.x", name);
+    vec_push(&E->nodes, (void *)name);
+    map_put(&E->node_ix, name, E->nodes.len - 1);
+    return E->nodes.len - 1;
+}
+
+#define MAX_WINDINGS 16
+
+/* Coupled inductors (K lines).  The inductors that couplings join form a
+ * group, the windings of one core; their inductance matrix must be
+ * D + s s^T with D diagonal and not negative: k_ij = sigma_i sigma_j c_i
+ * c_j for the pair i, j, with 0 < c_i <= 1 and signs sigma_i (sigma of
+ * the first winding +1), which any two windings satisfy (c = sqrt|k|)
+ * and more windings satisfy when each pair's coupling is the product of
+ * its windings' (every pair needs its K line).  Then s_i = sigma_i c_i
+ * sqrt(L_i), D_i = (1 - c_i^2) L_i, and the group is realised as:
+ *   - the magnetising inductance s_1^2 = c_1^2 L_1 across the first
+ *     winding behind its leakage (named after it, L1.m, or L1 itself
+ *     when there is no leakage);
+ *   - winding i's leakage D_i in series from its first node (taking the
+ *     inductor's name), none when D_i is 0 (|k| = 1);
+ *   - an ideal transformer (E_XF NAME.Li, its probe NAME.Li.in across the
+ *     magnetising inductance) of ratio s_i / s_1 behind it.
+ * The inductances are constants (the transformer's ratio is). */
+static void couple(Elab *E) {
+    int nk = E->couplings.len;
+    if (!nk)
+        return;
+    int ne = E->elems.len;
+    int *at = arena_alloc(sizeof(int) * (size_t)(2 * nk)); /* each end's element */
+    int *grp = arena_alloc(sizeof(int) * (size_t)(ne + 1)); /* union-find over elements */
+    for (int i = 0; i < ne; i++)
+        grp[i] = i;
+    for (int j = 0; j < nk; j++) {
+        Coupling *k = E->couplings.data[j];
+        for (int s = 0; s < 2; s++) {
+            int i = elem_index(E, k->ind[s]);
+            Elem *e = i < 0 ? NULL : E->elems.data[i];
+            if (!e)
+                error_at(k->indpos[s], "coupling '%s' names '%s', which is not an element of the netlist", k->name,
+                         k->ind[s]);
+            if (e->kind != E_L || e->user_kind != BK_L)
+                error_at(k->indpos[s], "coupling '%s' names '%s', which is a %s, not an inductor", k->name,
+                         k->ind[s], block_desc[e->user_kind].desc);
+            if (expr_params(e->val))
+                error_at(k->indpos[s], "coupled inductor '%s' must have a constant inductance, not one that "
+                         "depends on a param", k->ind[s]);
+            at[2 * j + s] = i;
+        }
+        if (at[2 * j] == at[2 * j + 1])
+            error_at(k->indpos[1], "coupling '%s' couples '%s' with itself", k->name, k->ind[0]);
+        int a = at[2 * j], b = at[2 * j + 1];
+        while (grp[a] != a)
+            a = grp[a];
+        while (grp[b] != b)
+            b = grp[b];
+        grp[a > b ? a : b] = a < b ? a : b;
+    }
+    bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
+    bool *done = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
+    Lower top = {E, &(Scope){.prefix = ""}};
+    for (int j0 = 0; j0 < nk; j0++) {
+        int root = at[2 * j0];
+        while (grp[root] != root)
+            root = grp[root];
+        if (done[root])
+            continue;
+        done[root] = true;
+        Coupling *first = E->couplings.data[j0];
+        /* the group's windings, in the order the couplings name them */
+        int w[MAX_WINDINGS], n = 0;
+        double kk[MAX_WINDINGS][MAX_WINDINGS] = {{0}};
+        Coupling *by[MAX_WINDINGS][MAX_WINDINGS] = {{0}};
+        for (int j = j0; j < nk; j++) {
+            int r = at[2 * j];
+            while (grp[r] != r)
+                r = grp[r];
+            if (r != root)
+                continue;
+            Coupling *k = E->couplings.data[j];
+            int ix[2];
+            for (int s = 0; s < 2; s++) {
+                ix[s] = -1;
+                for (int m = 0; m < n; m++)
+                    if (w[m] == at[2 * j + s])
+                        ix[s] = m;
+                if (ix[s] < 0) {
+                    if (n == MAX_WINDINGS)
+                        error_at(k->indpos[s], "more than %d inductors are coupled together", MAX_WINDINGS);
+                    ix[s] = n;
+                    w[n++] = at[2 * j + s];
+                }
+            }
+            if (by[ix[0]][ix[1]])
+                error_at(k->line->namepos, "coupling '%s' couples '%s' and '%s' again (after '%s')", k->name,
+                         k->ind[0], k->ind[1], by[ix[0]][ix[1]]->name);
+            kk[ix[0]][ix[1]] = kk[ix[1]][ix[0]] = k->k;
+            by[ix[0]][ix[1]] = by[ix[1]][ix[0]] = k;
+        }
+        for (int a = 0; a < n; a++)
+            for (int b = a + 1; b < n; b++)
+                if (!by[a][b])
+                    error_at(first->line->namepos, "'%s' and '%s' are coupled through others but no K line couples "
+                             "them: the windings of one core need a coupling for each pair",
+                             ((Elem *)E->elems.data[w[a]])->name, ((Elem *)E->elems.data[w[b]])->name);
+        /* c_i from any two others: k_ij k_il / k_jl = c_i^2 */
+        double cc[MAX_WINDINGS], sg[MAX_WINDINGS];
+        for (int i = 0; i < n; i++) {
+            int j = i == 0 ? 1 : 0, l = i == 2 ? 1 : 2; /* two others */
+            cc[i] = n == 2 ? sqrt(fabs(kk[0][1])) : sqrt(fabs(kk[i][j] * kk[i][l] / kk[j][l]));
+            sg[i] = i == 0 ? 1 : (kk[0][i] < 0 ? -1 : 1);
+            if (!(cc[i] <= 1 + 1e-12))
+                error_at(first->line->namepos, "the couplings of '%s' with the other windings would need it "
+                         "coupled more than perfectly (%g): they are not those of one core",
+                         ((Elem *)E->elems.data[w[i]])->name, cc[i]);
+            cc[i] = fmin(cc[i], 1);
+        }
+        for (int a = 0; a < n; a++)
+            for (int b = a + 1; b < n; b++)
+                if (fabs(kk[a][b] - sg[a] * sg[b] * cc[a] * cc[b]) > 1e-9)
+                    error_at(by[a][b]->kpos, "coupling '%s' gives %g where the group's other couplings give %g: "
+                             "the couplings are not those of windings on one core (k_ij = c_i c_j)",
+                             by[a][b]->name, kk[a][b], sg[a] * sg[b] * cc[a] * cc[b]);
+        /* realise */
+        double L[MAX_WINDINGS];
+        for (int i = 0; i < n; i++)
+            L[i] = expr_eval(((Elem *)E->elems.data[w[i]])->val, NULL);
+        int x1 = 0, b1 = ((Elem *)E->elems.data[w[0]])->n[1];
+        for (int i = 0; i < n; i++) {
+            Elem *e = E->elems.data[w[i]];
+            double D = (1 - cc[i] * cc[i]) * L[i];
+            bool leak = D > 1e-12 * L[i];
+            if (!leak && e->ic)
+                error_at(e->pos, "'%s' is coupled perfectly (|k| = 1): no element carries its current alone, "
+                         "so it cannot take an initial current", e->name);
+            int x = leak ? fresh_node(E, e->name) : e->n[0], b = e->n[1];
+            if (i == 0)
+                x1 = x;
+            if (leak) { /* the inductor becomes its leakage, up to x */
+                e->n[1] = x;
+                e->val = expr_num(D, e->pos);
+            } else if (i > 0) {
+                gone[w[i]] = true;
+            }
+            if (i == 0) { /* the magnetising inductance, x to b1 */
+                Elem *m = e;
+                if (leak) {
+                    m = lower_elem(&top, first->line, E_L, format("#m%d", j0), x, b1); /* renamed */
+                    m->name = format("%s.m", e->name);
+                    m->user_kind = BK_L;
+                    m->pos = e->pos;
+                    m->ic = e->ic;
+                }
+                /* its current: the first winding's and what the others
+                 * draw through their transformers */
+                for (int j = 1; j < n; j++) {
+                    Elem *f = E->elems.data[w[j]];
+                    Expr *g = expr_num(sg[j] * cc[j] * sqrt(L[j]) / (cc[0] * sqrt(L[0])), f->pos);
+                    if (f->ic)
+                        m->ic = m->ic ? expr_bin(EX_ADD, m->ic, expr_bin(EX_MUL, g, f->ic)) : expr_bin(EX_MUL, g, f->ic);
+                }
+                m->val = expr_num(cc[0] * cc[0] * L[0], e->pos);
+                continue;
+            }
+            Coupling *k = by[0][i];
+            Elem *t = lower_elem(&top, k->line, E_XF, format("#%d.%d", j0, i), x, b);
+            t->name = format("%s.%s", k->name, e->name);
+            t->val = expr_num(sg[i] * cc[i] * sqrt(L[i]) / (cc[0] * sqrt(L[0])), k->kpos);
+            Elem *p = lower_elem(&top, k->line, E_P, format("#%d.%d.in", j0, i), x1, b1);
+            p->name = format("%s.in", t->name);
+        }
+    }
+    Vec elems = {0};
+    for (int i = 0; i < E->elems.len; i++)
+        if (i >= ne || !gone[i])
+            vec_push(&elems, E->elems.data[i]);
+    E->elems = elems;
+    index_elems(E);
+}
+
 /* The value of a diode's key when it holds no param, else NaN. */
 static double fixed(const Expr *e) { return e && !has_names(e) ? expr_eval(e, NULL) : NAN; }
 
@@ -1480,7 +1666,7 @@ static void finish(Elab *E) {
         size_t n = strlen(e->name);
         if (e->kind == E_W)
             e->peer = elem_index(E, format("%.*s%c", (int)n - 1, e->name, e->name[n - 1] == '1' ? '2' : '1'));
-        else if (e->kind == E_CV || e->kind == E_CI || e->kind == E_OA)
+        else if (e->kind == E_CV || e->kind == E_CI || e->kind == E_OA || e->kind == E_XF)
             e->peer = elem_index(E, format("%s.in", e->name));
         else if (e->kind == E_P)
             e->peer = elem_index(E, format("%.*s", (int)n - 3, e->name));
@@ -1548,6 +1734,7 @@ static Circuit *elaborate(SrcFile *f) {
             element(&E, &top, l);
     }
     mutate(&E);
+    couple(&E);
     pair_diodes(&E);
     drop_dangling(&E);
     for (int i = 0; i < E.top.len; i++) {
@@ -1626,7 +1813,9 @@ const char *domain_unit(Domain d, char fn) {
 
 void circuit_dump(const Circuit *c, FILE *out) {
     static const char *const kn[] = {[E_R] = "R", [E_C] = "C",   [E_L] = "L", [E_V] = "V",
-                                     [E_I] = "I", [E_NL] = "NL", [E_W] = "W", [E_S] = "S"};
+                                     [E_I] = "I", [E_NL] = "NL", [E_W] = "W", [E_S] = "S",
+                                     [E_CV] = "E", [E_CI] = "G", [E_OA] = "OA", [E_P] = "P",
+                                     [E_CC] = "F", [E_XF] = "XF"};
     double *p = circuit_defaults(c);
     fprintf(out, "voice %s, %d nodes, %d elements, rate %g\n", c->name, c->nnodes, c->nelems, c->rate);
     for (int i = 0; i < c->nelems; i++) {

@@ -2272,7 +2272,7 @@ static const char *ic_table(Ctx *x, int *nv) {
         const Elem *e = &c->elems[i];
         WNode *n = x->w->leaf_of[i];
         int kind = prim_ic(e), nli = nl_index(x, e);
-        *nv += kind == IC_CAP || kind == IC_V || kind == IC_CV || kind == IC_OA;
+        *nv += kind == IC_CAP || kind == IC_V || kind == IC_CV || kind == IC_OA || kind == IC_XF;
         if (ELEM_CONTROLLED(e->kind)) /* an output: its row of ic_ctl */
             nli = e->kind == E_P || e->kind == E_CC ? -1 : nctl++;
         emit(&b, "%s{%s, %d, %d, %d, %d, %d}", i ? ", " : "", ic_code(kind), e->n[0], e->n[1], n ? n->id : -1,
@@ -2568,7 +2568,7 @@ static void index_tree(Ctx *x) {
     x->src = arena_alloc(sizeof(int) * (size_t)c->nelems);
     for (int i = 0; i < c->nelems; i++) {
         ElemKind k = c->elems[i].kind;
-        x->nctl += k == E_CV || k == E_CI || k == E_OA;
+        x->nctl += k == E_CV || k == E_CI || k == E_OA || k == E_XF;
         x->ncc += k == E_CC;
     }
     for (int i = 0; i < c->nelems; i++)
@@ -2669,7 +2669,7 @@ static const char *settle_store(Ctx *x, int nicv, const char *probes) {
                  "            i = ok ? x[m++] : 0;\n"
                  "        switch (e[0]) {\n"
                  "        case IC_CAP: v = react[e[4]]; break;\n"
-                 "        case IC_IND: i = react[e[4]]; break;\n", nicv, x->nctl ? " || e[0] == IC_CV || e[0] == IC_OA" : "");
+                 "        case IC_IND: i = react[e[4]]; break;\n", nicv, x->nctl ? " || e[0] == IC_CV || e[0] == IC_OA || e[0] == IC_XF" : "");
         if (work)
             emit(&b, "        case IC_V: st->s_wi[e[5]] = (real)i; break;\n"
                      "        case IC_RV: st->s_wi[e[5]] = (real)((v - (double)st->s_e[e[5]]) / R); break;\n"
@@ -3010,7 +3010,7 @@ static const char *ic_ctl(Ctx *x) {
         return "";
     const Circuit *c = x->c;
     Buf b = {0};
-    emit(&b, "        case IC_CV: case IC_CI: case IC_OA: {\n"
+    emit(&b, "        case IC_CV: case IC_CI: case IC_OA: case IC_XF: {\n"
              "            static const double ic_ctl[][3] = {");
     for (int i = 0, k = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
@@ -3066,7 +3066,8 @@ static const char *root_ctl_table(Ctx *x) {
             /* a transistor's source: gain / R on its junction's voltage */
             double g = c->kind == E_CC ? c->gain / r->R[c->ce] : c->gain;
             emit(&b, "%s{%d, %s, %d, %d, %d, %d, %d, %s}", k++ ? ", " : "", rb,
-                 c->kind == E_CV ? "IC_CV" : cur ? "IC_CI" : "IC_OA", c->p, c->q, c->cp, c->cn, cur ? -1 : u,
+                 c->kind == E_CV ? "IC_CV" : c->kind == E_XF ? "IC_XF" : cur ? "IC_CI" : "IC_OA", c->p, c->q, c->cp, c->cn,
+                 cur ? -1 : u,
                  lit(x, g));
             u += !cur;
         }

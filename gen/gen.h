@@ -338,11 +338,18 @@ typedef enum {
     E_CC, /* current-controlled current source: val * the current of
              nonlinear element `peer` (a transistor's junction) flows n0 -> n1
              through it */
+    E_XF, /* a winding of an ideal transformer: v(n0)-v(n1) = val * the
+             voltage across its probe `peer` (the reference winding), which
+             draws -val times its current, so that the two together neither
+             store nor supply power (coupled inductors, K) */
 } ElemKind;
 
 /* Whether e is a controlled source's output or probe (they join a root
  * together and stamp its nodal equations, not its scattering edges). */
-#define ELEM_CONTROLLED(k) ((k) == E_CV || (k) == E_CI || (k) == E_OA || (k) == E_P || (k) == E_CC)
+#define ELEM_CONTROLLED(k) ((k) == E_CV || (k) == E_CI || (k) == E_OA || (k) == E_P || (k) == E_CC || (k) == E_XF)
+/* Whether e is an output that holds a voltage, whose current is an
+ * unknown of the equations it stamps. */
+#define ELEM_VOUT(k) ((k) == E_CV || (k) == E_OA || (k) == E_XF)
 
 typedef enum {
     NL_DIODE,   /* i = Is (exp(v/(n Vt)) - 1), or 2 Is sinh(v/(n Vt)) for a pair */
@@ -615,19 +622,20 @@ typedef struct Root {
     double *M;
     uint64_t pmask;    /* params M depends on */
     /* Controlled sources and op-amps held in the core: each output
-     * (E_CV, E_CI, E_OA) with its probe's core nodes; a voltage output
-     * adds an unknown (its current) after the nodes and before the ideal
-     * V sources' currents.  Active, so the root is not lossless. */
+     * (E_CV, E_CI, E_OA, E_CC, E_XF) with its probe's core nodes; a
+     * voltage output adds an unknown (its current) after the nodes and
+     * before the ideal V sources' currents.  Active (but for E_XF), so
+     * the root is not checked lossless. */
     struct RootCtl {
         int elem;      /* the output element */
-        int kind;      /* E_CV, E_CI, E_OA or E_CC */
+        int kind;      /* E_CV, E_CI, E_OA, E_CC or E_XF */
         int p, q;      /* output's core nodes */
         int cp, cn;    /* probe's core nodes (E_CC: its nonlinear edge's) */
         int ce;        /* E_CC: the nonlinear edge whose current it takes */
         double gain;
     } *ctl;
     int nctl;
-    int nx;            /* unknowns the outputs add: E_CV and E_OA */
+    int nx;            /* unknowns the outputs add: E_CV, E_OA and E_XF */
 } Root;
 
 typedef struct Wdf {

@@ -31,6 +31,17 @@ typedef struct Mutator {
     Line *line;
 } Mutator;
 
+/* A coupling K NAME L1 L2 k: once every element is lowered, elaboration
+ * realises each group of inductors that couplings join (elab.c, couple). */
+typedef struct Coupling {
+    const char *name;   /* prefix + the line's name */
+    const char *ind[2]; /* the inductors' names, prefixed */
+    SrcPos indpos[2];
+    double k;
+    SrcPos kpos;
+    Line *line;
+} Coupling;
+
 /* Adds a primitive element named prefix + l->name + suffix from n0 to n1;
  * an element of that name already there is an error. */
 Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int n1);
@@ -44,6 +55,8 @@ double lower_rate(Lower *L);
 int lower_node(Lower *L, const char *name, SrcPos pos);
 /* Hands a mutator to elaboration, which applies it after the last element. */
 void lower_add_mutator(Lower *L, Mutator *m);
+/* Hands a coupling to elaboration, which applies it after the last element. */
+void lower_add_coupling(Lower *L, Coupling *k);
 /* Adds a waveguide; returns its index (Elem.wg of its ports). */
 int lower_add_waveguide(Lower *L, Waveguide *w);
 

@@ -35,10 +35,13 @@ static double *core_matrix(const Root *r, const double *R, int skip, int *dim) {
         if (p >= 0) A[p * D + x] += 1;
         if (q >= 0) A[q * D + x] -= 1;
         double g = c->kind == E_OA ? -1 : c->gain;
-        if (c->kind == E_CV && p >= 0) A[x * D + p] += 1;
-        if (c->kind == E_CV && q >= 0) A[x * D + q] -= 1;
+        if (c->kind != E_OA && p >= 0) A[x * D + p] += 1;
+        if (c->kind != E_OA && q >= 0) A[x * D + q] -= 1;
         if (cp >= 0) A[x * D + cp] -= g;
         if (cn >= 0) A[x * D + cn] += g;
+        /* a transformer's reference winding draws -gain times its current */
+        if (c->kind == E_XF && cp >= 0) A[cp * D + x] -= g;
+        if (c->kind == E_XF && cn >= 0) A[cn * D + x] += g;
         x++;
     }
     for (int k = 0; k < r->nedge; k++) {
@@ -272,7 +275,10 @@ static double root_check(const Root *r, double tol) {
         lo = fmin(lo, r->R[k]), hi = fmax(hi, r->R[k]);
     /* the nodal solve loses digits with the spread of port resistances */
     double bound = fmax(tol, 64 * DBL_EPSILON * hi / lo);
-    if (r->nctl) { /* active: neither lossless nor a tableau over its edges alone */
+    bool active = false; /* transformers neither store nor supply power */
+    for (int j = 0; j < r->nctl; j++)
+        active |= r->ctl[j].kind != E_XF;
+    if (active) { /* neither lossless nor a tableau over its edges alone */
         for (int i = 0; i < ne * ne; i++)
             if (!isfinite(r->M[i]))
                 die("the root's matrix is not finite");
@@ -511,7 +517,7 @@ void scatter_print_tableau(const Wdf *w, FILE *out) {
             const struct RootCtl *x = &r->ctl[k];
 #define NAME(n) c->nodes[(n) >= 0 ? r->core_node[n] : r->ref_node]
             fprintf(out, "  %s: %s, %s -> %s, %s%s\n", c->elems[x->elem].name,
-                    x->kind == E_OA ? "op-amp output" : x->kind == E_CV ? "controlled V" : "controlled I",
+                    x->kind == E_OA ? "op-amp output" : x->kind == E_CV ? "controlled V" : x->kind == E_XF ? "transformer winding" : "controlled I",
                     NAME(x->p), NAME(x->q), x->kind == E_OA ? "holding 0 =" : format("gain %.6g times", x->gain),
                     x->kind == E_CC ? format(" i(%s)", c->elems[r->edge[x->ce].elem].name)
                                     : format(" v(%s, %s)", NAME(x->cp), NAME(x->cn)));

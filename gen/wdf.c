@@ -492,7 +492,7 @@ static void build_root(Wdf *wd, Root *r, Edge *E, int ne, const int *gl, int nl,
         if (e->kind == E_CC && x->ce < 0)
             die("'%s' is not at the root of its junction", e->name);
         x->gain = e->val ? expr_eval(e->val, NULL) : 0;
-        r->nx += e->kind == E_CV || e->kind == E_OA;
+        r->nx += ELEM_VOUT(e->kind);
     }
     check_nonlinear(wd, r);
     r->M = arena_alloc(sizeof(double) * (size_t)(r->nedge * r->nedge));
@@ -874,7 +874,7 @@ void wdf_dump(const Wdf *w, FILE *out) {
                         w->c->elems[r->edge[i].elem].name);
         }
         for (int i = 0; i < r->nctl; i++)
-            fprintf(out, "  %s %s\n", r->ctl[i].kind == E_OA ? "op-amp" : "controlled",
+            fprintf(out, "  %s %s\n", r->ctl[i].kind == E_OA ? "op-amp" : r->ctl[i].kind == E_XF ? "transformer" : "controlled",
                     w->c->elems[r->ctl[i].elem].name);
     }
 }

@@ -232,8 +232,9 @@ static void stamp_branch(real *A, int N, int a, int b, int k) {
     }
 }
 
-/* A controlled source's output e (branch unknown k for a voltage output
- * or an op-amp) with gain g on the voltage across its probe. */
+/* A controlled source's output e (branch unknown k for a voltage output,
+ * an op-amp or a transformer's winding) with gain g on the voltage across
+ * its probe; a winding's probe draws -g times its current. */
 static void stamp_ctl(const Circuit *c, real *A, int N, int e, int k, real g) {
     const Elem *el = &c->elems[e], *pr = &c->elems[el->peer];
     int a = el->n[0], b = el->n[1], cp = pr->n[0], cn = pr->n[1];
@@ -246,7 +247,11 @@ static void stamp_ctl(const Circuit *c, real *A, int N, int e, int k, real g) {
     }
     if (a) A[(a - 1) * N + k] += 1.0;
     if (b) A[(b - 1) * N + k] -= 1.0;
-    if (el->kind == E_CV) { /* v(a) - v(b) - g v(probe) = 0 */
+    if (el->kind == E_XF) {
+        if (cp) A[(cp - 1) * N + k] -= g;
+        if (cn) A[(cn - 1) * N + k] += g;
+    }
+    if (el->kind == E_CV || el->kind == E_XF) { /* v(a) - v(b) - g v(probe) = 0 */
         if (a) A[k * N + a - 1] += 1.0;
         if (b) A[k * N + b - 1] -= 1.0;
     } else { /* an op-amp: v(probe) = 0 */
@@ -803,7 +808,7 @@ static void build_step_matrix(refsim *s) {
             if (has_value(el))
                 stamp_g(A, N, a, b, 1.0 / x);
             break;
-        case E_CV: case E_CI: case E_OA:
+        case E_CV: case E_CI: case E_OA: case E_XF:
             stamp_ctl(c, A, N, e, s->br[e], x);
             break;
         }
@@ -891,7 +896,7 @@ static void build_init_system(const refsim *s, const int *br0, int N,
              * force at its initial compression */
             stamp_j(x, a, b, nl_rest_current(s, e));
             break;
-        case E_CV: case E_CI: case E_OA:
+        case E_CV: case E_CI: case E_OA: case E_XF:
             stamp_ctl(c, A, N, e, br0[e], val);
             break;
         default:
@@ -913,9 +918,9 @@ static void initial_state(refsim *s) {
     for (int e = 0; e < ne; e++) {
         const Elem *el = &c->elems[e];
         br0[e] = -1;
-        if ((el->kind == E_C || el->kind == E_V || el->kind == E_CV || el->kind == E_OA) && !self_loop(el))
+        if ((el->kind == E_C || el->kind == E_V || ELEM_VOUT(el->kind)) && !self_loop(el))
             br0[e] = N++;
-        vedge[e] = el->kind == E_C || (el->kind == E_V && !has_value(el)) || el->kind == E_CV || el->kind == E_OA;
+        vedge[e] = el->kind == E_C || (el->kind == E_V && !has_value(el)) || ELEM_VOUT(el->kind);
         iedge[e] = el->kind == E_L || (el->kind == E_I && !has_value(el)) ||
                    is_nl(el) || el->kind == E_CI || el->kind == E_P || el->kind == E_CC;
         if (has_flux(el))
@@ -1010,7 +1015,7 @@ static void initial_state(refsim *s) {
 
 int refsim_linear_kind(int kind) {
     return kind == E_R || kind == E_C || kind == E_L || kind == E_V || kind == E_I || kind == E_CV || kind == E_CI ||
-           kind == E_OA || kind == E_P || kind == E_CC;
+           kind == E_OA || kind == E_P || kind == E_CC || kind == E_XF;
 }
 
 int refsim_can_simulate(const Circuit *c) {
@@ -1073,9 +1078,9 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     for (int e = 0; e < ne; e++) {
         const Elem *el = &c->elems[e];
         s->br[e] = -1;
-        if ((el->kind == E_L || el->kind == E_V || el->kind == E_CV || el->kind == E_OA) && !self_loop(el))
+        if ((el->kind == E_L || el->kind == E_V || ELEM_VOUT(el->kind)) && !self_loop(el))
             s->br[e] = N++;
-        vedge[e] = (el->kind == E_V && !has_value(el)) || el->kind == E_CV || el->kind == E_OA;
+        vedge[e] = (el->kind == E_V && !has_value(el)) || ELEM_VOUT(el->kind);
         iedge[e] = (el->kind == E_I && !has_value(el)) || nl_open_edge(el) || el->kind == E_CI || el->kind == E_P ||
                    el->kind == E_CC;
         if (is_nl(el))
@@ -1108,6 +1113,90 @@ refsim *refsim_new(const Circuit *c, double fs, const double *params) {
     initial_state(s);
     build_step_matrix(s);
     return s;
+}
+
+void refsim_start_at(refsim *s, const double *nodev, const double *cur) {
+    const Circuit *c = s->c;
+    if (s->dirty) { /* the values the operating point was found with */
+        update_values(s);
+        build_step_matrix(s);
+    }
+    s->nodev[0] = 0.0;
+    for (int k = 1; k < c->nnodes; k++)
+        s->nodev[k] = nodev[k];
+    for (int e = 0; e < c->nelems; e++) {
+        const Elem *el = &c->elems[e];
+        real vv = self_loop(el) ? 0.0 : s->nodev[el->n[0]] - s->nodev[el->n[1]];
+        real g = has_value(el) ? s->val[e] : 0.0;
+        switch (el->kind) {
+        case E_R:
+            s->v[e] = vv;
+            s->i[e] = vv / s->val[e];
+            break;
+        case E_C:
+            s->v[e] = vv;
+            s->i[e] = 0.0;
+            break;
+        case E_L:
+            s->v[e] = 0.0;
+            s->i[e] = cur[e];
+            break;
+        case E_V:
+            s->v[e] = vv;
+            s->i[e] = cur[e];
+            s->d[e] = el->input >= 0 ? vv - g * s->i[e] : s->cdrv[e];
+            break;
+        case E_I:
+            s->v[e] = vv;
+            if (el->input >= 0) {
+                s->i[e] = cur[e];
+                s->d[e] = s->i[e] - (g != 0.0 ? vv / g : 0.0);
+            } else {
+                s->d[e] = s->cdrv[e];
+                s->i[e] = s->d[e] + (g != 0.0 ? vv / g : 0.0);
+            }
+            break;
+        case E_NL:
+            s->v[e] = vv;
+            s->i[e] = cur[e];
+            if (is_nlcap(el))
+                s->cx[e] = vv; /* charged to the voltage across it */
+            break;
+        case E_CI: {
+            const Elem *pr = &c->elems[el->peer];
+            s->v[e] = vv;
+            s->i[e] = s->val[e] * (s->nodev[pr->n[0]] - s->nodev[pr->n[1]]);
+            break;
+        }
+        case E_P: /* a transformer's reference winding draws current */
+            s->v[e] = vv;
+            s->i[e] = cur[e];
+            break;
+        case E_CV: case E_OA: case E_CC: case E_XF:
+            s->v[e] = vv;
+            s->i[e] = cur[e];
+            break;
+        default:
+            break;
+        }
+    }
+    for (int k = 0; k < c->nouts; k++)
+        if (c->outs[k].kind == PR_X)
+            s->pv[k] = s->nodev[c->outs[k].n[0]] - s->nodev[c->outs[k].n[1]];
+    if (s->round_state) {
+        for (int k = 1; k < c->nnodes; k++)
+            s->nodev[k] = rd(s->nodev[k]);
+        for (int e = 0; e < c->nelems; e++) {
+            s->v[e] = rd(s->v[e]);
+            s->i[e] = rd(s->i[e]);
+            s->d[e] = rd(s->d[e]);
+            s->cx[e] = rd(s->cx[e]);
+        }
+        for (int k = 0; k < c->nouts; k++)
+            s->pv[k] = rd(s->pv[k]);
+    }
+    s->work = 0.0;
+    s->singular0 = 0;
 }
 
 void refsim_set_param(refsim *s, int id, double v) {
@@ -1222,6 +1311,10 @@ void refsim_step(refsim *s, const double *in, double *out) {
             pw -= 0.25 * (vv + pv) * (s->i[e] + pi);
             break;
         }
+        case E_XF: /* what a winding supplies its reference winding absorbs */
+            s->v[e] = vv;
+            s->i[e] = self_loop(el) ? 0.0 : rhs[s->br[e]];
+            break;
         case E_NL: {
             real g, ii = self_loop(el) ? 0.0 : nl_eval(s, e, vv, &g);
             if (has_flux(el))

@@ -31,6 +31,8 @@
  *     reactances keep their .ic values and everything else starts from
  *     node voltages of 0: no current through capacitors, no voltage across
  *     inductors, and source currents and voltages as those voltages give.
+ *     refsim_start_at() replaces it with a given DC operating point (a
+ *     SPICE deck's voice starts from one).
  *   - The first refsim_step() computes sample 0.
  *   - Probes (Circuit.outs): PR_V is v(n0) - v(n1); PR_I and PR_F the
  *     element's current (a source's whole current, parallel resistor
@@ -96,6 +98,22 @@ int refsim_is_linear(const Circuit *c);
  * (a loop of ideal voltage sources or a cut of ideal current sources;
  * contacts and curves count as open here, since they may carry nothing). */
 refsim *refsim_new(const Circuit *c, double fs, const double *params);
+/* Makes sample -1 the DC operating point given by node voltages
+ * nodev[nnodes] (nodev[0], ground, is taken as 0) and element currents
+ * cur[nelems] from n[0] to n[1], as dcop_solve (gen.h) returns them, in
+ * place of the initial state above; call it before the first
+ * refsim_step, with the params the point was found at.  Each element's
+ * v is the difference of its nodes' voltages and its i is cur[e], except:
+ * E_R: i = v / R; E_C: i = 0 (open at DC); E_L: v = 0 (shorted);
+ * a constant E_I: i = its drive + v/R; E_CI: i = gain v(probe)
+ * (dcop_solve leaves the current of E_I and E_CI at 0).  A
+ * source's drive at sample -1 is its constant value, or for one an input
+ * drives the drive that gives that v and i (E_V: v - R i; E_I: i - v/R).
+ * A nonlinear capacitor's law starts at the voltage across it; contacts'
+ * and nonlinear inductors' integrals and PR_X probes' integrals keep
+ * their .ic values, a PR_X probe's last voltage is that of its nodes.
+ * The work restarts from 0; refsim_init_singular then gives 0. */
+void refsim_start_at(refsim *s, const double *nodev, const double *cur);
 /* Changes param `id` (clamped to [min, max] as a voice does); it takes
  * effect from the next step on. */
 void refsim_set_param(refsim *s, int id, double v);

@@ -7,13 +7,15 @@
  * between its two diodes in series), of netlists/tubescreamer.cir
  * (v(out), and v(n) at the op-amp's inverting input) and of
  * netlists/fuzzface.cir (v(out), and v(c2) at Q2's collector) and of
- * netlists/bigmuff.cir (v(out), and v(c) at its collector) over 20 ms
- * from each deck's DC operating point (rest for the first two), sampled
+ * netlists/bigmuff.cir (v(out), and v(c) at its collector) and of
+ * netlists/bridge.cir (v(o), the ripple taken off the rail, and v(p), the
+ * rail) over 20 ms from each deck's DC operating point (rest for the
+ * clippers and the bridge, whose reservoir then charges), sampled
  * at t = m/48000 s, with a 10 ns maximum step (its own error, which the
  * script prints, is below 4e-10 V for the clipper, 1.2e-8 V for the Tube
  * Screamer, whose 51 pF feedback ngspice steps less finely, 8.7e-7 V on
- * the Fuzz Face's 6 V swings and 1.5e-9 V for the Big Muff stage).  (The bridge deck is not among them: ngspice gives up on
- * its transient; see the script.)
+ * the Fuzz Face's 6 V swings, 1.5e-9 V for the Big Muff stage and 2e-9 V
+ * for the bridge).
  *
  * The deck is read by bin/wdc as written (with a .print naming those
  * vectors) and rendered with its own sine source at 48 kHz and 192 kHz;
@@ -43,6 +45,8 @@
  *     fuzzface      v(c2)    -61.0 dB    -92.9 dB  39.4
  *     bigmuff       v(out)   -60.6 dB    -84.7 dB  16.0
  *     bigmuff       v(c)     -66.4 dB    -90.5 dB  16.0
+ *     bridge        v(o)    -103.9 dB   -128.0 dB  16.0
+ *     bridge        v(p)    -109.3 dB   -133.4 dB  16.0
  *
  * (The Fuzz Face's error falls 9.2, then 3.7 times from 48 to 96 to 192
  * kHz; past that ngspice's own error, about -95 dB, is as large.  Its
@@ -98,6 +102,7 @@ static const deck decks[] = {
     {"tubescreamer", "v(out) v(n)", 2, 0.02, {-49.5, -162.5}, {-70.5, -183.5}, {2, 8}},
     {"fuzzface", "v(out) v(c2)", 2, 0.02, {-53, -58}, {-83.5, -90}, {1, 4}},
     {"bigmuff", "v(out) v(c)", 2, 0.02, {-57.5, -63.5}, {-81.5, -87.5}, {1, 4}},
+    {"bridge", "v(o) v(p)", 2, 0.02, {-101, -106.5}, {-125, -130.5}, {1, 4}},
 };
 #define NDECKS ((int)(sizeof decks / sizeof decks[0]))
 

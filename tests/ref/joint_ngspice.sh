@@ -15,12 +15,7 @@
 #     netlists/tubescreamer.cir  20 ms  v(out) v(n)
 #     netlists/fuzzface.cir      20 ms  v(out) v(c2)
 #     netlists/bigmuff.cir       20 ms  v(out) v(c)
-#
-# (netlists/bridge.cir is not among them: ngspice 39 gives up on its
-# transient a little after its first charging pulse, "timestep too small",
-# at every tolerance tried, from 1e-3 to 1e-6 RELTOL, with and without
-# GMIN, junction capacitances or the capacitors' initial charge; the
-# bridge is checked against refsim's converged solve in test_joint.)
+#     netlists/bridge.cir        20 ms  v(o) v(p)
 #
 # Each deck is run as written, its .tran and .print lines replaced by a
 # .control block (the rate and length above), from its DC operating point
@@ -108,6 +103,7 @@ run clipper_asym 20m "v(out) v(mid)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1
 run tubescreamer 20m "v(out) v(n)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 run fuzzface 20m "v(out) v(c2)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 run bigmuff 20m "v(out) v(c)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
+run bridge 20m "v(o) v(p)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 {
     echo "deck,t,v..."
     cat "$WORK/all.csv"

@@ -1,0 +1,491 @@
+/*
+ * test_coupled.c - coupled inductors (K lines).
+ *
+ * Elaboration takes the inductors K lines join as the windings of one
+ * core: a magnetising inductance across the first winding behind its
+ * leakage, and an ideal transformer (E_XF) from it to each other winding
+ * behind that winding's leakage.  Checked here:
+ *
+ *   - the inductance matrix, as an identity of the discretisation: with
+ *     every winding driven by a current source, the trapezoidal rule gives
+ *     v[n] + v[n-1] = (2/T) L (i[n] - i[n-1]) for the matrix L of self
+ *     and mutual inductances M_ij = k_ij sqrt(L_i L_j), whatever elements
+ *     realise it; held to 1e-11 of the largest voltage for a pair, a pair
+ *     with k < 0, a perfectly coupled pair (k = 1, no leakage) and three
+ *     windings whose couplings are products c_i c_j with mixed signs;
+ *   - refsim, the extended-precision trapezoidal simulation of the same
+ *     elaborated circuit with its own MNA stamp of the transformer, over a
+ *     sine, noise and random steps at 48 and 192 kHz: a transformer into
+ *     an RC load, three windings into resistive loads, a transformer
+ *     feeding a diode bridge (the transformer and the four diodes at one
+ *     root, solved jointly).  Double voices below -200 dB; float voices
+ *     within 8 times the error that merely rounding refsim's state to
+ *     float causes (its floor) or -100 dB, whichever is larger;
+ *   - ngspice (tests/ref/coupled_tran.csv, made by
+ *     tests/ref/coupled_ngspice.sh) on two decks read as written: a
+ *     centre-tapped transformer (three windings, three K lines) and a
+ *     pair with a negative coefficient, at 48 and 192 kHz, each vector
+ *     below its bound and its error falling at least 12 times over the
+ *     fourfold rate (second order: 16);
+ *   - each diagnostic, with its position.
+ *
+ * Measured (ngspice 39), relative RMS error:
+ *
+ *     deck       vector  48 kHz    192 kHz   ratio
+ *     xfmr_ct    v(b)    -63.6 dB  -88.4 dB  17.5
+ *     xfmr_ct    v(c)    -63.6 dB  -88.4 dB  17.5
+ *     xfmr_ct    i(l1)   -63.9 dB  -89.1 dB  18.2
+ *     xfmr_neg   v(b)    -54.4 dB  -78.5 dB  16.1
+ *     xfmr_neg   i(l2)   -49.0 dB  -73.2 dB  16.1
+ *
+ * (ngspice's own error, the difference between its 10 ns and 5 ns runs,
+ * is below 3.1e-10 V and 2.4e-11 A.)
+ *
+ * Run from the repository root: build/tests/test_coupled (after make).
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "testlib.h"
+
+#define MAXOUT 4
+#define TOL_DOUBLE_DB (-200.0)
+#define FLOAT_FACTOR 8.0
+#define TOL_FLOAT_DB (-100.0)
+
+static char dir[64];
+
+static const char *write_net(const char *name, const char *text) {
+    static char path[256];
+    if (!dir[0])
+        assert_int_equal(tl_temp_dir(dir, "coupled"), 0);
+    char file[64];
+    snprintf(file, sizeof file, "k_%s.wdn", name);
+    snprintf(path, sizeof path, "%s", tl_write_file(dir, file, text));
+    return path;
+}
+
+/* ---- the inductance matrix ---- */
+
+typedef struct group {
+    const char *name;
+    int n;                 /* windings */
+    double L[3];           /* self inductances, H */
+    double k[3][3];        /* couplings (upper triangle) */
+    const char *kfirst[3]; /* each K line's first inductor, in order 01 02 12 */
+} group;
+
+static const group groups[] = {
+    {"pair", 2, {10e-3, 40e-3}, {{0, 0.9}}, {NULL}},
+    {"negative", 2, {1e-3, 2.5e-3}, {{0, -0.7}}, {NULL}},
+    {"perfect", 2, {4e-3, 1e-3}, {{0, 1}}, {NULL}},
+    /* c = 0.9, 0.8, 0.95 with signs +, -, +: k_01 = -0.72, k_02 = 0.855,
+     * k_12 = -0.76 */
+    {"three", 3, {10e-3, 2.5e-3, 3e-3}, {{0, -0.72, 0.855}, {0, 0, -0.76}}, {NULL}},
+};
+
+/* Each winding w driven by current source Iw from ground into its first
+ * node, its second node grounded; outputs the windings' voltages. */
+static char *group_netlist(const group *g) {
+    static char text[2048];
+    int len = 0;
+    for (int w = 0; w < g->n; w++)
+        len += snprintf(text + len, sizeof text - (size_t)len, ".input i%d\nI%d 0 a%d i%d\nL%d a%d 0 %.17g\n", w, w,
+                        w, w, w, w, g->L[w]);
+    int nk = 0;
+    for (int a = 0; a < g->n; a++)
+        for (int b = a + 1; b < g->n; b++)
+            len += snprintf(text + len, sizeof text - (size_t)len, "K%d L%d L%d %.17g\n", nk++, a, b, g->k[a][b]);
+    for (int w = 0; w < g->n; w++)
+        len += snprintf(text + len, sizeof text - (size_t)len, ".output v%d v(a%d)\n", w, w);
+    return text;
+}
+
+static void test_inductance_identity(void **state) {
+    (void)state;
+    const double fs = 48000, T = 1 / fs;
+    const long n = 4800;
+    for (size_t gi = 0; gi < sizeof groups / sizeof groups[0]; gi++) {
+        const group *g = &groups[gi];
+        const char *path = write_net(g->name, group_netlist(g));
+        tl_voice v;
+        if (tl_voice_build(path, 0, &v) != 0)
+            fail_msg("%s: the voice could not be built", g->name);
+        assert_int_equal(v.cls->n_inputs, g->n);
+        double M[3][3];
+        for (int a = 0; a < g->n; a++)
+            for (int b = 0; b < g->n; b++)
+                M[a][b] = a == b ? g->L[a] : (a < b ? g->k[a][b] : g->k[b][a]) * sqrt(g->L[a] * g->L[b]);
+        double **in = tl_bufs_new(3, n), **out = tl_bufs_new(3, n);
+        assert_non_null(in);
+        assert_non_null(out);
+        tl_rng r;
+        tl_rng_seed(&r, 0x6b00u + gi);
+        for (int w = 0; w < g->n; w++) { /* a smooth random current: held noise, filtered */
+            double y = 0, hold = 0;
+            for (long k = 0; k < n; k++) {
+                if (k % 16 == 0)
+                    hold = 0.01 * tl_rng_signed(&r);
+                y += 0.05 * (hold - y);
+                in[w][k] = y;
+            }
+        }
+        void *st = tl_state_new(v.cls, fs);
+        assert_non_null(st);
+        const double *ip[3] = {in[0], in[1], in[2]};
+        double *op[3] = {out[0], out[1], out[2]};
+        v.cls->process(st, ip, op, (int)n);
+        double worst = 0, peak = 0;
+        for (long k = 0; k < n; k++)
+            for (int a = 0; a < g->n; a++) {
+                double want = 0, vp = k ? out[a][k - 1] : 0;
+                for (int b = 0; b < g->n; b++)
+                    want += 2 / T * M[a][b] * (in[b][k] - (k ? in[b][k - 1] : 0));
+                worst = fmax(worst, fabs(out[a][k] + vp - want));
+                peak = fmax(peak, fabs(out[a][k]));
+            }
+        print_message("%-9s %d windings: worst |v[n] + v[n-1] - (2/T) L di| %.3g of peak %.3g V (%.1f dB)\n",
+                      g->name, g->n, worst, peak, 20 * log10(worst / peak));
+        assert_true(peak > 1e-3);
+        if (!(worst <= 1e-11 * peak))
+            fail_msg("%s: the voice's inductance matrix is not the coupled one", g->name);
+        tl_state_free(st);
+        tl_bufs_free(in, 3);
+        tl_bufs_free(out, 3);
+        tl_voice_free(&v);
+    }
+}
+
+/* ---- refsim ---- */
+
+typedef struct net {
+    const char *name;
+    const char *text;
+    /* nodes only diodes tie to the rest while all block: refsim's Newton
+     * may stop at its cap there (see test_joint.c) */
+    int floating;
+} net;
+
+static const net nets[] = {
+    {"xfmr",
+     ".input in\nV1 x 0 in R=100\nL1 x 0 10m\nL2 b 0 40m\nK1 L1 L2 0.99\nRL b 0 1k\nC1 b 0 10n\n"
+     ".output b v(b)\n.output i i(L1)\n",
+     0},
+    {"xf3",
+     ".input in\nV1 x 0 in R=50\nL1 x 0 10m\nL2 a c 2.5m\nL3 c b 3m\nK1 L1 L2 -0.72\nK2 L3 L1 0.855\nK3 L2 L3 -0.76\n"
+     "Ra a 0 1k\nRc c 0 10\nRb b 0 2.2k\nCb b 0 47n\n.output a v(a)\n.output b v(b)\n.output i i(L3)\n",
+     0},
+    {"xf_rect",
+     ".input in\nV1 x 0 in R=10\nL1 x 0 100m\nL2 s t 25m\nK1 L1 L2 0.98\nRt t 0 1meg\n"
+     ".model dr diode Is=7n n=1.8\nD1 s p dr\nD2 t p dr\nD3 0 s dr\nD4 0 t dr\nC1 p 0 10u\nRL p 0 1k\n"
+     ".output p v(p)\n.output s v(s,t)\n",
+     1},
+};
+#define NNETS ((int)(sizeof nets / sizeof nets[0]))
+
+typedef enum { SINE, NOISE, STEPS, NDRIVES } drive_kind;
+static const char *const drive_name[NDRIVES] = {"sine", "noise", "steps"};
+
+static void make_drive(drive_kind d, double fs, long n, uint64_t seed, double *x) {
+    tl_rng r;
+    tl_rng_seed(&r, seed);
+    double hold = 0, v = 0;
+    for (long k = 0; k < n; k++) {
+        switch (d) {
+        case SINE: x[k] = 5 * sin(2 * M_PI * 440.0 * (double)k / fs); break;
+        case NOISE: x[k] = tl_rng_signed(&r); break;
+        default:
+            if (hold-- <= 0) {
+                v = 5 * tl_rng_signed(&r);
+                hold = (double)(tl_rng_next(&r) % 8);
+            }
+            x[k] = v;
+        }
+    }
+}
+
+/* Largest |a - b| over the largest |b|, in dB (-400 for exact). */
+static double err_db(const double *a, const double *b, long n) {
+    double e = 0, p = 0;
+    for (long k = 0; k < n; k++) {
+        e = fmax(e, fabs(a[k] - b[k]));
+        p = fmax(p, fabs(b[k]));
+    }
+    return e > 0 && p > 0 ? 20 * log10(e / p) : -400;
+}
+
+/* The voice and refsim (and refsim with its state rounded to the voice's
+ * precision) over x: the worst output's error and the floor, in dB. */
+static void run_pair(const Circuit *c, const wdv_class *cls, double fs, const double *x, long n, int floating,
+                     double *db, double *floor_db) {
+    void *st = tl_state_new(cls, fs);
+    assert_non_null(st);
+    refsim *rs = refsim_new(c, fs, NULL), *rf = refsim_new(c, fs, NULL);
+    assert_non_null(rs);
+    assert_non_null(rf);
+    refsim_round_state(rf, cls->precision);
+    assert_true(c->nouts <= MAXOUT);
+    double **vo = tl_bufs_new(MAXOUT, n), **ro = tl_bufs_new(MAXOUT, n), **fo = tl_bufs_new(MAXOUT, n);
+    assert_non_null(vo);
+    assert_non_null(ro);
+    assert_non_null(fo);
+    double *op[MAXOUT], y[MAXOUT], yf[MAXOUT];
+    for (long pos = 0; pos < n; pos += 64) {
+        int b = n - pos < 64 ? (int)(n - pos) : 64;
+        const double *ip[1] = {x + pos};
+        for (int k = 0; k < c->nouts; k++)
+            op[k] = vo[k] + pos;
+        cls->process(st, ip, op, b);
+    }
+    for (long k = 0; k < n; k++) {
+        refsim_step(rs, &x[k], y);
+        refsim_step(rf, &x[k], yf);
+        for (int j = 0; j < c->nouts; j++) {
+            ro[j][k] = y[j];
+            fo[j][k] = yf[j];
+        }
+    }
+    *db = *floor_db = -400;
+    for (int j = 0; j < c->nouts; j++) {
+        *db = fmax(*db, err_db(vo[j], ro[j], n));
+        *floor_db = fmax(*floor_db, err_db(fo[j], ro[j], n));
+    }
+    refsim_nl_info info;
+    refsim_nl_stats(rs, &info);
+    if (info.unconverged && !floating)
+        fail_msg("the reference stopped at its cap at %ld of %ld samples", info.unconverged, info.steps);
+    tl_bufs_free(vo, MAXOUT);
+    tl_bufs_free(ro, MAXOUT);
+    tl_bufs_free(fo, MAXOUT);
+    refsim_free(rs);
+    refsim_free(rf);
+    tl_state_free(st);
+}
+
+static void test_against_refsim(void **state) {
+    (void)state;
+    int failed = 0;
+    print_message("%-8s %-6s %7s %10s %10s %10s\n", "network", "drive", "rate", "double dB", "float dB", "floor dB");
+    for (int t = 0; t < NNETS; t++) {
+        const char *path = write_net(nets[t].name, nets[t].text);
+        Circuit *c = wdc_load(path);
+        assert_non_null(c);
+        assert_true(refsim_can_simulate(c));
+        tl_voice vd, vf;
+        if (tl_voice_build(path, 0, &vd) != 0 || tl_voice_build(path, 1, &vf) != 0)
+            fail_msg("%s: the voice could not be built", nets[t].name);
+        static const double rates[] = {48000.0, 192000.0};
+        for (int ri = 0; ri < 2; ri++)
+            for (int d = 0; d < NDRIVES; d++) {
+                double fs = rates[ri], db, dbf, fl, fl64;
+                long n = (long)(0.03 * fs);
+                double *x = malloc(sizeof(double) * (size_t)n);
+                assert_non_null(x);
+                make_drive((drive_kind)d, fs, n, 0x6b6bu + (uint64_t)(t * 16 + d), x);
+                run_pair(c, vd.cls, fs, x, n, nets[t].floating, &db, &fl64);
+                run_pair(c, vf.cls, fs, x, n, nets[t].floating, &dbf, &fl);
+                free(x);
+                double ftol = fmax(TOL_FLOAT_DB, fl + 20 * log10(FLOAT_FACTOR));
+                bool bad = !(db <= TOL_DOUBLE_DB) || !(dbf <= ftol);
+                print_message("%-8s %-6s %7.0f %10.1f %10.1f %10.1f%s\n", nets[t].name, drive_name[d], fs, db, dbf,
+                              fl, bad ? "  FAILED" : "");
+                failed |= bad;
+            }
+        tl_voice_free(&vd);
+        tl_voice_free(&vf);
+    }
+    if (failed)
+        fail_msg("a voice with coupled inductors is off refsim");
+}
+
+/* ---- ngspice ---- */
+
+#define CSV_PATH "tests/ref/coupled_tran.csv"
+#define FS_REF 48000.0
+#define MAXVEC 3
+#define MAXREF 241 /* 5 ms at 48 kHz */
+#define MIN_RATIO 12.0
+
+typedef struct deck {
+    const char *name;
+    int nvec;
+    double seconds;
+    double bound48[MAXVEC], bound192[MAXVEC]; /* dB */
+} deck;
+
+static const deck decks[] = {
+    {"xfmr_ct", 3, 0.005, {-60.5, -60.5, -61}, {-85, -85, -85.5}},
+    {"xfmr_neg", 2, 0.005, {-51.5, -46}, {-75.5, -70}},
+};
+#define NDECKS ((int)(sizeof decks / sizeof decks[0]))
+
+typedef struct refdata {
+    double v[NDECKS][MAXVEC][MAXREF];
+    int n[NDECKS];
+} refdata;
+
+static int read_row(const char *line, const char *path, int lineno, void *ctx) {
+    refdata *rd = ctx;
+    const char *comma = strchr(line, ',');
+    int d = -1;
+    for (int k = 0; k < NDECKS && comma; k++)
+        if ((size_t)(comma - line) == strlen(decks[k].name) && !strncmp(line, decks[k].name, strlen(decks[k].name)))
+            d = k;
+    if (d < 0) {
+        fprintf(stderr, "%s:%d: unknown deck\n", path, lineno);
+        return -1;
+    }
+    char *end;
+    double t = strtod(comma + 1, &end);
+    long m = lround(t * FS_REF);
+    if (m < 0 || m >= MAXREF || fabs(t * FS_REF - (double)m) > 1e-6 || m != rd->n[d]) {
+        fprintf(stderr, "%s:%d: unexpected time\n", path, lineno);
+        return -1;
+    }
+    for (int k = 0; k < decks[d].nvec; k++) {
+        if (*end != ',') {
+            fprintf(stderr, "%s:%d: too few values\n", path, lineno);
+            return -1;
+        }
+        rd->v[d][k][m] = strtod(end + 1, &end);
+    }
+    rd->n[d]++;
+    return 0;
+}
+
+/* Renders tests/nets/NAME.cir at fs = FS_REF * over; y[k][m]: vector k
+ * at t = m / FS_REF. */
+static void render(const deck *dk, int over, double y[MAXVEC][MAXREF], long nref) {
+    char cmd[1024], path[256], line[512];
+    if (!dir[0])
+        assert_int_equal(tl_temp_dir(dir, "coupled"), 0);
+    snprintf(cmd, sizeof cmd,
+             "bin/wdc tests/nets/%s.cir --render %s/o.wav --csv %s/o.csv --rate %g --seconds %.9g 2>/dev/null",
+             dk->name, dir, dir, FS_REF * over, dk->seconds + 1.5 / FS_REF);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(path, sizeof path, "%s/o.csv", dir);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    long n = 0;
+    while (fgets(line, sizeof line, f)) {
+        if (n % over == 0 && n / over < nref) {
+            char *p = line;
+            for (int k = 0; k < dk->nvec; k++) {
+                y[k][n / over] = strtod(p, &p);
+                p += *p == ',';
+            }
+        }
+        n++;
+    }
+    fclose(f);
+    assert_true(n >= (nref - 1) * over + 1);
+}
+
+static double rel_rms(const double *y, const double *r, long n) {
+    double e = 0, p = 0;
+    for (long k = 0; k < n; k++) {
+        e += (y[k] - r[k]) * (y[k] - r[k]);
+        p += r[k] * r[k];
+    }
+    return sqrt(e / p);
+}
+
+static void test_against_ngspice(void **state) {
+    (void)state;
+    static refdata rd;
+    memset(&rd, 0, sizeof rd);
+    assert_int_equal(tl_read_csv(CSV_PATH, "deck", "sh tests/ref/coupled_ngspice.sh", read_row, &rd), 0);
+    static double y48[MAXVEC][MAXREF], y192[MAXVEC][MAXREF];
+    int failed = 0;
+    for (int d = 0; d < NDECKS; d++) {
+        const deck *dk = &decks[d];
+        long nref = rd.n[d];
+        assert_int_equal(nref, lround(dk->seconds * FS_REF) + 1);
+        render(dk, 1, y48, nref);
+        render(dk, 4, y192, nref);
+        for (int k = 0; k < dk->nvec; k++) {
+            double e48 = rel_rms(y48[k], rd.v[d][k], nref), e192 = rel_rms(y192[k], rd.v[d][k], nref);
+            bool bad = !(tl_db(e48) < dk->bound48[k]) || !(tl_db(e192) < dk->bound192[k]) || !(e48 / e192 >= MIN_RATIO);
+            print_message("%-9s vector %d: 48 kHz %6.1f dB (bound %5.1f), 192 kHz %6.1f dB (bound %5.1f), ratio %5.2f "
+                          "(second order: 16; asserted >= %g)%s\n",
+                          dk->name, k, tl_db(e48), dk->bound48[k], tl_db(e192), dk->bound192[k], e48 / e192,
+                          MIN_RATIO, bad ? "  FAILED" : "");
+            failed |= bad;
+        }
+    }
+    if (failed)
+        fail_msg("a deck with coupled inductors is off ngspice");
+}
+
+/* ---- diagnostics ---- */
+
+static void expect_error(const char *text, const char *want) {
+    char *got = tl_first_report(text, SOLVER_DEFAULT);
+    assert_non_null(got);
+    if (strcmp(got, want))
+        fail_msg("for\n%s\nwanted: %s\ngot:    %s", text, want, got);
+    free(got);
+}
+
+#define SRC ".input in\nV1 x 0 in R=10\n"
+
+static void test_diagnostics(void **state) {
+    (void)state;
+    expect_error(SRC "L1 x 0 1m\nK1 L1 L9 0.9\nR2 x 0 1k\n",
+                 "t.wdn:4:7: error: coupling 'K1' names 'L9', which is not an element of the netlist");
+    expect_error(SRC "L1 x 0 1m\nR2 x 0 1k\nK1 L1 R2 0.9\n",
+                 "t.wdn:5:7: error: coupling 'K1' names 'R2', which is a resistor, not an inductor");
+    expect_error(SRC "L1 x 0 1m\nK1 L1 L1 0.9\nR2 x 0 1k\n",
+                 "t.wdn:4:7: error: coupling 'K1' couples 'L1' with itself");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 1.5\n",
+                 "t.wdn:6:10: error: coupling 'K1' has coefficient 1.5: it must lie in [-1, 1] and not be 0");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 0\n",
+                 "t.wdn:6:10: error: coupling 'K1' has coefficient 0: it must lie in [-1, 1] and not be 0");
+    expect_error(SRC ".param k 0.9\nL1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 {k}\n",
+                 "t.wdn:7:11: error: the coefficient of coupling 'K1' must be a number (params are not known at "
+                 "compile time)");
+    expect_error(SRC ".param l 1m\nL1 x 0 {l}\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 0.9\n",
+                 "t.wdn:7:4: error: coupled inductor 'L1' must have a constant inductance, not one that depends on "
+                 "a param");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 1m 0.9\n",
+                 "t.wdn:6:7: error: coupling 'K1' needs the names of two inductors before its coefficient");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 0.9\nK2 L2 L1 0.8\n",
+                 "t.wdn:7:1: error: coupling 'K2' couples 'L2' and 'L1' again (after 'K1')");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nL3 z 0 1m\nR2 y 0 1k\nR3 z 0 1k\nK1 L1 L2 0.9\nK2 L1 L3 0.9\n",
+                 "t.wdn:8:1: error: 'L2' and 'L3' are coupled through others but no K line couples them: the "
+                 "windings of one core need a coupling for each pair");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nL3 z 0 1m\nR2 y 0 1k\nR3 z 0 1k\nK1 L1 L2 0.9\nK2 L1 L3 0.9\n"
+                     "K3 L2 L3 -0.81\n",
+                 "t.wdn:10:10: error: coupling 'K3' gives -0.81 where the group's other couplings give 0.81: the "
+                 "couplings are not those of windings on one core (k_ij = c_i c_j)");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nL3 z 0 1m\nR2 y 0 1k\nR3 z 0 1k\nK1 L1 L2 0.9\nK2 L1 L3 0.9\n"
+                     "K3 L2 L3 0.5\n",
+                 "t.wdn:8:1: error: the couplings of 'L1' with the other windings would need it coupled more than "
+                 "perfectly (1.27279): they are not those of one core");
+    expect_error(SRC "L1 x 0 1m IC=1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 1\n",
+                 "t.wdn:3:1: error: 'L1' is coupled perfectly (|k| = 1): no element carries its current alone, so "
+                 "it cannot take an initial current");
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_inductance_identity),
+        cmocka_unit_test(test_against_refsim),
+        cmocka_unit_test(test_against_ngspice),
+        cmocka_unit_test(test_diagnostics),
+    };
+    int rc = cmocka_run_group_tests(tests, NULL, NULL);
+    if (dir[0])
+        tl_remove_dir(dir);
+    return rc;
+}
