@@ -42,16 +42,6 @@
 
 /* ---- the measurement ---- */
 
-typedef struct Voice {
-    const wdv_class *cls;
-    void *st;
-    double *noise[16];
-    double *outbuf[16];
-    const double *in[16];
-    double *out[16];
-    long pos; /* frame offset into the noise */
-} Voice;
-
 #define LANES 8
 
 /* LANES instances of one voice, rendered by process_batch. */
@@ -88,19 +78,6 @@ static void render_lanes(Batch *b, long nblocks, int batched) {
 static void render_each(void *ctx, long nblocks) { render_lanes(ctx, nblocks, 0); }
 static void render_batch(void *ctx, long nblocks) { render_lanes(ctx, nblocks, 1); }
 
-static void render_blocks(void *ctx, long nblocks) {
-    Voice *v = ctx;
-    const wdv_class *cls = v->cls;
-    for (long b = 0; b < nblocks; b++) {
-        for (int k = 0; k < cls->n_inputs; k++)
-            v->in[k] = v->noise[k] + v->pos;
-        cls->process(v->st, v->in, v->out, BLOCK);
-        v->pos += BLOCK;
-        if (v->pos + BLOCK > NOISE_LEN)
-            v->pos = 0;
-    }
-}
-
 /* uniform white noise in [-1, 1) (xorshift64*) */
 static double noise_sample(uint64_t *s) {
     uint64_t x = *s;
@@ -133,42 +110,42 @@ static int skips(const tl_voice *tv) {
 static Result bench_one(const char *netlist, int single, double seconds, const char *const *extra) {
     Result res = {0};
     tl_voice tv;
-    Voice v = {0};
+    const wdv_class *cls = NULL;
+    double *noise[16] = {NULL}, *outbuf[16] = {NULL}; /* per input, per output */
     const char *args[4] = {"--batch", NULL, NULL, NULL};
     for (int k = 0; extra && extra[k] && k < 2; k++)
         args[k + 1] = extra[k];
     if (tl_voice_build_args(netlist, single, args, CFLAGS, &tv) != 0)
         goto out;
     res.skips = skips(&tv);
-    v.cls = tv.cls;
-    if (v.cls->n_inputs > 16 || v.cls->n_outputs > 16) {
+    cls = tv.cls;
+    if (cls->n_inputs > 16 || cls->n_outputs > 16) {
         fprintf(stderr, "bench: %s: more than 16 inputs or outputs\n", netlist);
         goto out;
     }
-    v.st = tl_state_new(v.cls, FS);
-    if (!v.st)
-        goto out;
     uint64_t seed = 0x9E3779B97F4A7C15ull;
-    for (int k = 0; k < v.cls->n_inputs; k++) {
-        v.noise[k] = malloc(sizeof(double) * NOISE_LEN);
-        if (!v.noise[k])
+    for (int k = 0; k < cls->n_inputs; k++) {
+        noise[k] = malloc(sizeof(double) * NOISE_LEN);
+        if (!noise[k])
             goto out;
         for (long n = 0; n < NOISE_LEN; n++)
-            v.noise[k][n] = noise_sample(&seed);
+            noise[k][n] = noise_sample(&seed);
     }
-    for (int k = 0; k < v.cls->n_outputs; k++) {
-        v.outbuf[k] = calloc(BLOCK, sizeof(double));
-        if (!v.outbuf[k])
+    for (int k = 0; k < cls->n_outputs; k++) {
+        outbuf[k] = calloc(BLOCK, sizeof(double));
+        if (!outbuf[k])
             goto out;
-        v.out[k] = v.outbuf[k];
     }
-    res.ns = bench_measure(render_blocks, &v, BLOCK, RUNS, WARMUP_S, seconds);
-    Batch b = {.cls = v.cls, .noise = v.noise};
-    int bok = v.cls->process_batch != NULL;
+    int finite = 1;
+    res.ns = bench_time_voice(cls, FS, noise, NOISE_LEN, outbuf, BLOCK, RUNS, WARMUP_S, seconds, &finite);
+    if (res.ns < 0)
+        goto out;
+    Batch b = {.cls = cls, .noise = noise};
+    int bok = cls->process_batch != NULL;
     for (int l = 0; l < LANES && bok; l++) {
-        b.st[l] = tl_state_new(v.cls, FS);
+        b.st[l] = tl_state_new(cls, FS);
         bok = b.st[l] != NULL;
-        for (int k = 0; k < v.cls->n_outputs && bok; k++)
+        for (int k = 0; k < cls->n_outputs && bok; k++)
             bok = (b.outbuf[l][k] = calloc(BLOCK, sizeof(double))) != NULL;
         b.inl[l] = b.in[l];
         b.outl[l] = b.outbuf[l];
@@ -176,7 +153,7 @@ static Result bench_one(const char *netlist, int single, double seconds, const c
     res.each_ns = bok ? bench_measure(render_each, &b, BLOCK * LANES, RUNS, WARMUP_S, seconds) : NAN;
     res.batch_ns = bok ? bench_measure(render_batch, &b, BLOCK * LANES, RUNS, WARMUP_S, seconds) : NAN;
     for (int l = 0; l < LANES; l++) {
-        for (int k = 0; k < v.cls->n_outputs; k++) {
+        for (int k = 0; k < cls->n_outputs; k++) {
             for (int n = 0; n < BLOCK && b.outbuf[l][k]; n++)
                 if (!isfinite(b.outbuf[l][k][n]))
                     bok = 0;
@@ -184,34 +161,21 @@ static Result bench_one(const char *netlist, int single, double seconds, const c
         }
         tl_state_free(b.st[l]);
     }
-    res.state_size = v.cls->state_size;
-    res.finite = bok;
-    for (int k = 0; k < v.cls->n_outputs; k++)
-        for (int n = 0; n < BLOCK; n++)
-            if (!isfinite(v.outbuf[k][n]))
-                res.finite = 0;
+    res.state_size = cls->state_size;
+    res.finite = bok && finite;
     res.ok = 1;
 out:
     for (int k = 0; k < 16; k++) {
-        free(v.noise[k]);
-        free(v.outbuf[k]);
+        free(noise[k]);
+        free(outbuf[k]);
     }
-    tl_state_free(v.st);
     tl_voice_free(&tv);
     return res;
 }
 
 int main(int argc, char **argv) {
     double seconds = 0.5;
-    int first = 1;
-    if (argc > 2 && !strcmp(argv[1], "-t")) {
-        seconds = atof(argv[2]);
-        first = 3;
-    }
-    if (first >= argc || !(seconds > 0)) {
-        fprintf(stderr, "usage: bench [-t SECONDS] NETLIST.wdn...\n");
-        return 2;
-    }
+    int first = bench_args(argc, argv, &seconds, NULL, "bench [-t SECONDS] NETLIST.wdn...");
     printf("wdc voice benchmark: one voice at %.0f Hz, white noise on every input, blocks of %d frames,\n"
            "best of %d runs of >= %.2g s after a %.2g s warm-up\n",
            FS, BLOCK, RUNS, seconds, WARMUP_S);

@@ -57,14 +57,12 @@
  * A benchmark, not a test: the exit status is non-zero only if a voice
  * could not be built or loaded, or produced a non-finite sample.
  */
-#include <errno.h>
 #include <fcntl.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 #include <unistd.h>
 
 #include "benchlib.h"
@@ -80,23 +78,12 @@
 #define TIMED_S 1.0   /* seconds of drive the timed runs cycle */
 #define ERR_S 0.1     /* seconds of signal in the accuracy runs */
 #define SINE_HZ 440.0
-#define MAXIO 16
-#define CFLAGS "-O2 -march=native"
 
-static const double rates[] = {48000.0, 96000.0, 192000.0};
-#define NRATES ((int)(sizeof rates / sizeof rates[0]))
+/* Every voice is measured at each rate of bench_rates.  An input no
+ * source of a deck drives gets a sine of the amplitudes bench_amps: a
+ * netlist that is not a deck both, a deck the first. */
 
-/* The sine's amplitudes on an input no source of a deck drives: a
- * netlist that is not a deck gets both, a deck the first. */
-static const double amps[] = {1.0, 10.0};
-#define NAMPS ((int)(sizeof amps / sizeof amps[0]))
-
-typedef struct SolverCase {
-    const char *label;
-    const char *args[5];
-} SolverCase;
-
-static const SolverCase diode_cases[] = {
+static const bench_solver diode_cases[] = {
     {"newton", {"--solver", "newton", NULL}},
     {"omega", {"--solver", "omega", NULL}},
     {"fast", {"--solver", "fast", NULL}},
@@ -104,7 +91,7 @@ static const SolverCase diode_cases[] = {
 };
 /* a deck, or a netlist without diodes: as it is (the label is the
  * voice's: "joint" or "default") */
-static const SolverCase plain_case = {"default", {NULL}};
+static const bench_solver plain_case = {"default", {NULL}};
 
 #define MAXCASES ((int)(sizeof diode_cases / sizeof diode_cases[0]))
 
@@ -140,19 +127,7 @@ static int starts_at_dcop(const Circuit *c) {
  * dcop_solve leaves at 0, is filled with its whole current (drive + v/R),
  * as refsim_start_at takes it. */
 static int deck_dcop(const Circuit *c, double *nodev, double *cur) {
-    double *p = circuit_defaults(c);
-    double *drive = calloc((size_t)c->nelems + 1, sizeof(double));
-    if (!drive)
-        return -1;
-    for (int i = 0; i < c->nelems; i++) {
-        const Elem *e = &c->elems[i];
-        if (e->kind != E_V && e->kind != E_I)
-            continue;
-        if (e->input < 0)
-            drive[i] = elem_drive(c, e, p);
-        else if (c->input_fn[e->input])
-            drive[i] = srcfn_at(c->input_fn[e->input], 0, 1 / c->rate);
-    }
+    double *p = circuit_defaults(c), *drive = dcop_drives(c, p);
     int found = dcop_solve(c, p, drive, nodev, cur);
     int rest = 1;
     for (int n = 0; found && n < c->nnodes; n++)
@@ -166,115 +141,10 @@ static int deck_dcop(const Circuit *c, double *nodev, double *cur) {
             cur[i] = drive[i] + (e->val ? v / elem_value(c, e, p) : 0.0);
         }
     }
-    free(drive);
     return !found ? -1 : rest ? 0 : 1;
 }
 
-/* ---- voices ---- */
-
-typedef struct Built {
-    tl_voice v; /* v.dir: temporary directory; "" if it could not be made */
-    int ok;     /* emitted and compiled */
-} Built;
-
-/* Makes the voice's directory; for a netlist that is not a deck, with
- * its text written into it without its solver= keys (text != NULL).
- * Returns 0, or -1 after printing what failed. */
-static int voice_dir(const char *text, Built *b) {
-    memset(b, 0, sizeof *b);
-    snprintf(b->v.dir, sizeof b->v.dir, "/tmp/wdc-deckbench-XXXXXX");
-    if (!mkdtemp(b->v.dir)) {
-        fprintf(stderr, "deckbench: mkdtemp: %s\n", strerror(errno));
-        b->v.dir[0] = '\0';
-        return -1;
-    }
-    if (!text)
-        return 0;
-    char src[128];
-    snprintf(src, sizeof src, "%s/netlist.wdn", b->v.dir);
-    if (bench_drop_solver_keys(text, src) < 0) {
-        fprintf(stderr, "deckbench: cannot write %s\n", src);
-        return -1;
-    }
-    return 0;
-}
-
-/* Emits the voice of `src` in dir at rate fs with the solver's flags and
- * compiles it (tl_voice_make).  Returns 0, or -1 after printing what
- * failed. */
-static int voice_make(const char *netlist, const char *src, const char *dir, const SolverCase *sc, double fs) {
-    char rate[32];
-    snprintf(rate, sizeof rate, "%.0f", fs);
-    const char *args[8];
-    int n = 0;
-    args[n++] = "--rate";
-    args[n++] = rate;
-    for (int k = 0; sc->args[k] && n < 7; k++)
-        args[n++] = sc->args[k];
-    args[n] = NULL;
-    if (tl_voice_make(src, dir, args, CFLAGS) != 0) {
-        fprintf(stderr, "deckbench: %s --rate %s, solver %s: the voice could not be built\n", netlist, rate,
-                sc->label);
-        return -1;
-    }
-    return 0;
-}
-
-/* ---- speed ---- */
-
-typedef struct Timed {
-    const wdv_class *cls;
-    void *st;
-    double *const *drive; /* per input, len frames, cycled */
-    long len, pos;
-    const double *in[MAXIO];
-    double *out[MAXIO];
-} Timed;
-
-static void render_blocks(void *ctx, long nblocks) {
-    Timed *v = ctx;
-    const wdv_class *cls = v->cls;
-    for (long b = 0; b < nblocks; b++) {
-        for (int k = 0; k < cls->n_inputs; k++)
-            v->in[k] = v->drive[k] + v->pos;
-        cls->process(v->st, v->in, v->out, BLOCK);
-        v->pos += BLOCK;
-        if (v->pos + BLOCK > v->len)
-            v->pos = 0;
-    }
-}
-
 /* ---- accuracy ---- */
-
-/* Renders nframes of a fresh instance at fs, input k driven by in[k];
- * the joint solves' counts into stats (all 0 without them).  Returns 0,
- * or -1 if a sample is not finite. */
-static int render_voice(const wdv_class *cls, double fs, double *const *in, long nframes, double **out,
-                        unsigned long stats[WDV_SOLVE_N]) {
-    for (int k = 0; k < WDV_SOLVE_N; k++)
-        stats[k] = 0;
-    void *st = tl_state_new(cls, fs);
-    if (!st)
-        return -1;
-    const double *ip[MAXIO];
-    double *op[MAXIO];
-    for (long pos = 0; pos < nframes; pos += BLOCK) {
-        int n = nframes - pos < BLOCK ? (int)(nframes - pos) : BLOCK;
-        for (int k = 0; k < cls->n_inputs; k++)
-            ip[k] = in[k] + pos;
-        for (int k = 0; k < cls->n_outputs; k++)
-            op[k] = out[k] + pos;
-        cls->process(st, ip, op, n);
-    }
-    if (cls->solve_stats)
-        cls->solve_stats(st, stats);
-    tl_state_free(st);
-    for (int k = 0; k < cls->n_outputs; k++)
-        for (long n = 0; n < nframes; n++)
-            if (!isfinite(out[k][n]))
-                return -1;
-    return 0;
-}
 
 /* Runs refsim of c at fs over nframes samples, from the operating point
  * (nodev, cur) when nodev != NULL, input k driven by in[k]; out[k][n]
@@ -287,7 +157,7 @@ static int render_ref(const Circuit *c, double fs, const double *nodev, const do
         return -1;
     if (nodev)
         refsim_start_at(s, nodev, cur);
-    double x[MAXIO], o[MAXIO];
+    double x[BENCH_MAXIO], o[BENCH_MAXIO];
     for (long n = 0; n < nframes; n++) {
         for (int k = 0; k < c->ninputs; k++)
             x[k] = in[k][n];
@@ -310,44 +180,39 @@ static int render_ref(const Circuit *c, double fs, const double *nodev, const do
 typedef struct Prep {
     const char *path;
     const Circuit *c;
-    const SolverCase *cases;
+    const bench_solver *cases;
     int ncases, ndrives, have_ref;
-    const double *op_nodev, *op_cur; /* the operating point refsim starts at, or NULL */
-    Built built[NRATES][MAXCASES];
-    long dlen[NRATES];                   /* frames of each drive: the longer of TIMED_S and ERR_S */
-    double *drive[NRATES][NAMPS][MAXIO]; /* [rate][drive][input] */
-    double *ref[NRATES][NAMPS][MAXIO];   /* [rate][drive][output], shared */
-    long *unconverged; /* shared, [rate][drive] */
-    int *ref_ok;       /* shared, [rate][drive] */
-    void *shared;
-    size_t shared_size;
+    const double *op_nodev, *op_cur;            /* the operating point refsim starts at, or NULL */
+    bench_built built[BENCH_NRATES * MAXCASES]; /* [rate * ncases + solver] */
+    long dlen[BENCH_NRATES];                    /* frames of each drive: the longer of TIMED_S and ERR_S */
+    double *drive[BENCH_NRATES][BENCH_NAMPS][BENCH_MAXIO]; /* [rate][drive][input] */
+    bench_refs refs;                                       /* [slot(rate, drive)] */
 } Prep;
 
-typedef struct Job {
-    int kind; /* 0: a reference run, 1: a voice build */
-    int r, d, s;
-} Job;
-
-static long err_frames(int r) { return (long)lround(ERR_S * rates[r]); }
+static long err_frames(int r) { return (long)lround(ERR_S * bench_rates[r]); }
 
 /* frames the timed runs cycle: a whole number of blocks */
 static long timed_frames(int r) {
-    long len = (long)lround(TIMED_S * rates[r]) / BLOCK * BLOCK;
+    long len = (long)lround(TIMED_S * bench_rates[r]) / BLOCK * BLOCK;
     return len < BLOCK ? BLOCK : len;
 }
 
-static int slot(int r, int d) { return r * NAMPS + d; }
+static int slot(int r, int d) { return r * BENCH_NAMPS + d; }
 
-static int do_job(Prep *p, const Job *j) {
-    if (j->kind == 0) {
-        int sl = slot(j->r, j->d);
-        if (render_ref(p->c, rates[j->r], p->op_nodev, p->op_cur, p->drive[j->r][j->d], err_frames(j->r),
-                       p->ref[j->r][j->d], &p->unconverged[sl]) != 0)
-            return 1;
-        p->ref_ok[sl] = 1;
-        return 0;
-    }
-    const char *dir = p->built[j->r][j->s].v.dir;
+/* Computes reference run `run` (a slot) of the Prep ctx: 0 if done, else
+ * 1. */
+static int run_ref(void *ctx, int run) {
+    Prep *p = ctx;
+    int r = run / BENCH_NAMPS, d = run % BENCH_NAMPS;
+    return render_ref(p->c, bench_rates[r], p->op_nodev, p->op_cur, p->drive[r][d], err_frames(r),
+                      bench_refs_out(&p->refs, run), &p->refs.unconverged[run]) != 0;
+}
+
+/* Builds voice i of the Prep ctx, what wdc prints going to a log shown
+ * only if the build fails: 0 if done, else 1. */
+static int build_voice(void *ctx, int i) {
+    Prep *p = ctx;
+    const char *dir = p->built[i].v.dir;
     char src[128], log[128];
     if (p->c->deck)
         snprintf(src, sizeof src, "%s", p->path);
@@ -360,7 +225,8 @@ static int do_job(Prep *p, const Job *j) {
     int saved = dup(2), fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (saved >= 0 && fd >= 0)
         dup2(fd, 2);
-    int st = voice_make(p->path, src, dir, &p->cases[j->s], rates[j->r]);
+    const bench_solver *sc = &p->cases[i % p->ncases];
+    int st = bench_voice_make("deckbench", p->path, src, dir, sc, bench_rates[i / p->ncases], BENCH_CFLAGS);
     fflush(stderr);
     if (saved >= 0 && fd >= 0)
         dup2(saved, 2);
@@ -376,22 +242,12 @@ static int do_job(Prep *p, const Job *j) {
     return st == 0 ? 0 : 1;
 }
 
-typedef struct JobList {
-    Prep *p;
-    const Job *jobs;
-} JobList;
-
-static int run_job(void *ctx, int k) {
-    JobList *l = ctx;
-    return do_job(l->p, &l->jobs[k]);
-}
-
 /* Input k's drive d at rate fs over n frames: the deck's source's time
  * function, or the sine. */
 static void fill_drive(const Circuit *c, int k, int d, double fs, double *x, long n) {
     const SrcFn *f = c->input_fn ? c->input_fn[k] : NULL;
     for (long i = 0; i < n; i++)
-        x[i] = f ? srcfn_at(f, (double)i / fs, 1 / fs) : amps[d] * sin(2.0 * M_PI * SINE_HZ * (double)i / fs);
+        x[i] = f ? srcfn_at(f, (double)i / fs, 1 / fs) : bench_amps[d] * sin(2.0 * M_PI * SINE_HZ * (double)i / fs);
 }
 
 /* Computes the drives, makes the voices' directories and the shared
@@ -399,7 +255,7 @@ static void fill_drive(const Circuit *c, int k, int d, double fs, double *x, lon
  * Returns 0, or -1 (out of memory). */
 static int prepare(Prep *p, const char *text) {
     const Circuit *c = p->c;
-    for (int r = 0; r < NRATES; r++) {
+    for (int r = 0; r < BENCH_NRATES; r++) {
         long t = timed_frames(r), e = err_frames(r);
         p->dlen[r] = t > e ? t : e;
         for (int d = 0; d < p->ndrives; d++)
@@ -407,84 +263,37 @@ static int prepare(Prep *p, const char *text) {
                 p->drive[r][d][k] = malloc(sizeof(double) * (size_t)p->dlen[r]);
                 if (!p->drive[r][d][k])
                     return -1;
-                fill_drive(c, k, d, rates[r], p->drive[r][d][k], p->dlen[r]);
+                fill_drive(c, k, d, bench_rates[r], p->drive[r][d][k], p->dlen[r]);
             }
     }
-    size_t doubles = 0;
-    for (int r = 0; r < NRATES; r++)
-        doubles += (size_t)NAMPS * (size_t)c->nouts * (size_t)err_frames(r);
-    size_t nslots = NRATES * NAMPS;
-    p->shared_size = doubles * sizeof(double) + nslots * (sizeof(long) + sizeof(int));
-    p->shared = mmap(NULL, p->shared_size, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-    if (p->shared == MAP_FAILED) {
-        p->shared = NULL;
+    long frames[BENCH_NRATES * BENCH_NAMPS];
+    int runs[BENCH_NRATES * BENCH_NAMPS], nruns = 0;
+    for (int sl = 0; sl < BENCH_NRATES * BENCH_NAMPS; sl++)
+        frames[sl] = err_frames(sl / BENCH_NAMPS);
+    if (bench_refs_new(&p->refs, BENCH_NRATES * BENCH_NAMPS, c->nouts, frames) != 0)
         return -1;
-    }
-    double *at = p->shared;
-    for (int r = 0; r < NRATES; r++)
-        for (int d = 0; d < NAMPS; d++)
-            for (int k = 0; k < c->nouts; k++) {
-                p->ref[r][d][k] = at;
-                at += err_frames(r);
-            }
-    p->unconverged = (long *)(void *)at;
-    p->ref_ok = (int *)(void *)(p->unconverged + nslots);
-
-    Job jobs[NRATES * NAMPS + NRATES * MAXCASES];
-    int status[NRATES * NAMPS + NRATES * MAXCASES];
-    int njobs = 0;
     /* the longest first */
     if (p->have_ref)
-        for (int r = NRATES - 1; r >= 0; r--)
+        for (int r = BENCH_NRATES - 1; r >= 0; r--)
             for (int d = 0; d < p->ndrives; d++)
-                jobs[njobs++] = (Job){0, r, d, 0};
-    for (int r = 0; r < NRATES; r++)
-        for (int s = 0; s < p->ncases; s++)
-            if (voice_dir(c->deck ? NULL : text, &p->built[r][s]) == 0)
-                jobs[njobs++] = (Job){1, r, 0, s};
-    JobList list = {p, jobs};
-    bench_run_jobs(njobs, run_job, &list, status);
-    for (int k = 0; k < njobs; k++)
-        if (jobs[k].kind == 1)
-            p->built[jobs[k].r][jobs[k].s].ok = status[k] == 0;
-        else if (status[k] != 0)
-            p->ref_ok[slot(jobs[k].r, jobs[k].d)] = 0;
-    return 0;
+                runs[nruns++] = slot(r, d);
+    return bench_prepare("deckbench", c->deck ? NULL : text, p->built, BENCH_NRATES * p->ncases, build_voice, &p->refs,
+                         runs, nruns, run_ref, p);
 }
 
 static void prep_free(Prep *p) {
-    for (int r = 0; r < NRATES; r++) {
-        for (int s = 0; s < p->ncases; s++)
-            tl_voice_free(&p->built[r][s].v);
-        for (int d = 0; d < NAMPS; d++)
-            for (int k = 0; k < MAXIO; k++)
+    for (int i = 0; i < BENCH_NRATES * p->ncases; i++)
+        tl_voice_free(&p->built[i].v);
+    for (int r = 0; r < BENCH_NRATES; r++)
+        for (int d = 0; d < BENCH_NAMPS; d++)
+            for (int k = 0; k < BENCH_MAXIO; k++)
                 free(p->drive[r][d][k]);
-    }
-    if (p->shared)
-        munmap(p->shared, p->shared_size);
-    p->shared = NULL;
+    bench_refs_free(&p->refs);
 }
 
 /* ---- the table ---- */
 
-#define MAXNOTES 64
-static char notes[MAXNOTES][256];
-static int nnotes;
 static int name_width = 14;
-
-static void add_note(const char *fmt, const char *a, const char *b) {
-    if (nnotes < MAXNOTES)
-        snprintf(notes[nnotes++], sizeof notes[0], fmt, a, b);
-}
-
-static void fmt_db(char *buf, size_t cap, double e, const char *out) {
-    if (!(e >= 0))
-        snprintf(buf, cap, "nan");
-    else if (e == 0)
-        snprintf(buf, cap, "-inf %s", out);
-    else
-        snprintf(buf, cap, "%.1f %s", 20.0 * log10(e), out);
-}
 
 #define ROW "%-*s %-9s %6s  %-10s %9s  %11s %13s %6s  %-9s %s\n"
 
@@ -495,20 +304,6 @@ static void print_row(const char *net, const char *solver, double fs, const char
     snprintf(rate, sizeof rate, "%.0f", fs);
     printf(ROW, name_width, net, solver, rate, drive, ns, steps, solves, capped, first, conv);
     fflush(stdout);
-}
-
-/* The worst relative RMS error over the outputs, and its output. */
-static double worst(double **y, double *const *r, int nouts, long n, int *which) {
-    double w = -1;
-    *which = 0;
-    for (int k = 0; k < nouts; k++) {
-        double e = rel_rms_error(y[k], r[k], n);
-        if (!(e <= w)) {
-            w = e;
-            *which = k;
-        }
-    }
-    return w;
 }
 
 /* The name of drive d: the deck's sources' time functions, the sine, or
@@ -529,17 +324,17 @@ static void drive_name(const Circuit *c, const wdv_class *cls, int d, char *buf,
     else if (fn == c->ninputs)
         snprintf(buf, cap, "deck %s", what);
     else if (fn)
-        snprintf(buf, cap, "deck+sine %g", amps[d]);
+        snprintf(buf, cap, "deck+sine %g", bench_amps[d]);
     else
-        snprintf(buf, cap, "sine %g %.4s", amps[d], cls->inputs[0].unit);
+        snprintf(buf, cap, "sine %g %.4s", bench_amps[d], cls->inputs[0].unit);
 }
 
 /* Measures one voice on every drive: its speed, its joint solves and its
  * accuracy, and prints its rows.  Returns 0, or 1 if it failed. */
 static int measure_voice(Prep *p, const char *label, int r, int s, double seconds) {
     const Circuit *c = p->c;
-    double fs = rates[r];
-    Built *b = &p->built[r][s];
+    double fs = bench_rates[r];
+    bench_built *b = &p->built[r * p->ncases + s];
     const char *solver = p->cases[s].label;
     if (!b->ok || tl_voice_load(&b->v) != 0) {
         print_row(label, solver, fs, "-", "failed", "-", "-", "-", "-", "-");
@@ -566,50 +361,38 @@ static int measure_voice(Prep *p, const char *label, int r, int s, double second
         drive_name(c, cls, d, dname, sizeof dname);
 
         /* speed */
-        Timed tv = {0};
-        tv.cls = cls;
-        tv.st = tl_state_new(cls, fs);
-        tv.drive = p->drive[r][d];
-        tv.len = timed_frames(r);
-        for (int k = 0; k < c->nouts; k++)
-            tv.out[k] = y[k];
-        if (!tv.st) {
+        double ns = bench_time_voice(cls, fs, p->drive[r][d], timed_frames(r), y, BLOCK, RUNS, WARMUP_S, seconds,
+                                     &finite);
+        if (ns < 0) {
             fprintf(stderr, "deckbench: out of memory\n");
             failed = 1;
             break;
         }
-        double ns = bench_measure(render_blocks, &tv, BLOCK, RUNS, WARMUP_S, seconds);
-        for (int k = 0; k < c->nouts; k++)
-            for (int n = 0; n < BLOCK; n++)
-                if (!isfinite(y[k][n]))
-                    finite = 0;
-        tl_state_free(tv.st);
         snprintf(nsbuf, sizeof nsbuf, "%.1f", ns);
 
         /* the joint solves and the accuracy, from a fresh instance */
         unsigned long st[WDV_SOLVE_N];
-        if (render_voice(cls, fs, p->drive[r][d], N, y, st) != 0)
+        if (bench_render_voice(cls, fs, p->drive[r][d], N, BLOCK, y, st) != 0)
             finite = 0;
         if (cls->solve_stats) {
             snprintf(steps, sizeof steps, "%.2f", st[WDV_SOLVE_SOLVES] ? (double)st[WDV_SOLVE_STEPS] / (double)st[WDV_SOLVE_SOLVES] : 0.0);
             snprintf(solves, sizeof solves, "%.2f", (double)st[WDV_SOLVE_SOLVES] / (double)N);
             snprintf(capped, sizeof capped, "%lu", st[WDV_SOLVE_CAPPED]);
         }
-        if (p->ref_ok[slot(r, d)]) {
+        if (p->refs.ok[slot(r, d)]) {
             int w;
-            double e = worst(y, p->ref[r][d], c->nouts, N, &w), d0 = 0;
-            fmt_db(cv, sizeof cv, e, c->outs[w].name);
+            double *const *ref = bench_refs_out(&p->refs, slot(r, d));
+            double e = bench_worst_error(y, ref, c->nouts, N, &w), d0 = 0;
+            bench_fmt_db(cv, sizeof cv, e, c->outs[w].name);
             for (int k = 0; k < c->nouts; k++)
-                if (!(fabs(y[k][0] - p->ref[r][d][k][0]) <= d0))
-                    d0 = fabs(y[k][0] - p->ref[r][d][k][0]);
+                if (!(fabs(y[k][0] - ref[k][0]) <= d0))
+                    d0 = fabs(y[k][0] - ref[k][0]);
             snprintf(first, sizeof first, "%.1e", d0);
         }
         print_row(label, solver, fs, dname, nsbuf, steps, solves, capped, first, cv);
     }
     if (!finite) {
-        char what[128];
-        snprintf(what, sizeof what, "%s at %.0f Hz", solver, fs);
-        add_note("%s, %s: the voice produced a non-finite sample", label, what);
+        bench_note("%s, %s at %.0f Hz: the voice produced a non-finite sample", label, solver, fs);
         failed = 1;
     }
     tl_bufs_free(y, c->nouts);
@@ -626,20 +409,13 @@ static int bench_netlist(const char *path, double seconds) {
         print_row(label, "-", 0, "-", "failed", "-", "-", "-", "-", "-");
         return 1;
     }
-    if (c->ninputs > MAXIO || c->nouts > MAXIO || c->nouts < 1) {
-        add_note("%s: %s", label, "no outputs, or more than 16 inputs or outputs: not measured");
+    if (c->ninputs > BENCH_MAXIO || c->nouts > BENCH_MAXIO || c->nouts < 1) {
+        bench_note("%s: no outputs, or more than 16 inputs or outputs: not measured", label);
         return 0;
     }
     char *text = NULL;
-    if (!c->deck) {
-        text = read_file(path, NULL);
-        if (!text) {
-            fprintf(stderr, "deckbench: cannot read %s\n", path);
-            return 1;
-        }
-        if (strstr(text, ".include"))
-            add_note("%s: %s", label, "includes other files, which the copy without solver= keys may not find");
-    }
+    if (!c->deck && !(text = bench_read_netlist("deckbench", path, label)))
+        return 1;
 
     static Prep p;
     memset(&p, 0, sizeof p);
@@ -652,13 +428,13 @@ static int bench_netlist(const char *path, double seconds) {
         p.cases = &plain_case;
         p.ncases = 1;
     }
-    p.ndrives = c->deck ? 1 : NAMPS;
+    p.ndrives = c->deck ? 1 : BENCH_NAMPS;
     for (int k = 0; k < c->ninputs; k++)
         if (!c->deck && c->input_fn && c->input_fn[k]) /* --spice read as a deck; otherwise none */
             p.ndrives = 1;
     p.have_ref = refsim_can_simulate(c);
     if (!p.have_ref)
-        add_note("%s: %s", label, "refsim cannot simulate it (refsim_can_simulate): no error figures");
+        bench_note("%s: refsim cannot simulate it (refsim_can_simulate): no error figures", label);
 
     /* where refsim starts: the voice's operating point, if it has one */
     double *nodev = malloc(sizeof(double) * ((size_t)c->nnodes + 1));
@@ -674,19 +450,21 @@ static int bench_netlist(const char *path, double seconds) {
         if (at > 0) {
             p.op_nodev = nodev;
             p.op_cur = cur;
-            add_note("%s: %s", label, "starts from its DC operating point; refsim starts there too");
+            bench_note("%s: starts from its DC operating point; refsim starts there too", label);
         } else if (at == 0) {
-            add_note("%s: %s", label, "its DC operating point is rest: the voice and refsim start there");
+            bench_note("%s: its DC operating point is rest: the voice and refsim start there", label);
         } else {
-            add_note("%s: %s", label, "the DC operating point was not found: the voice starts from rest, refsim "
-                                      "from its initial state");
+            bench_note("%s: the DC operating point was not found: the voice starts from rest, refsim from its "
+                       "initial state",
+                       label);
         }
     } else if (c->deck && !c->uic && !count_kind(c, is_nonlinear) && !count_kind(c, is_controlled) &&
                count_kind(c, is_reactance)) {
-        add_note("%s: %s", label, "a linear deck starts from its DC operating point, refsim from its own initial "
-                                  "state: the figures include the difference");
+        bench_note("%s: a linear deck starts from its DC operating point, refsim from its own initial state: the "
+                   "figures include the difference",
+                   label);
     } else if (c->deck && c->uic) {
-        add_note("%s: %s", label, ".tran ... UIC: the voice and refsim start from its .ic");
+        bench_note("%s: .tran ... UIC: the voice and refsim start from its .ic", label);
     }
 
     int failed = 0;
@@ -694,20 +472,16 @@ static int bench_netlist(const char *path, double seconds) {
         fprintf(stderr, "deckbench: out of memory\n");
         failed = 1;
     }
-    for (int r = 0; r < NRATES && p.have_ref && !failed; r++)
+    for (int r = 0; r < BENCH_NRATES && p.have_ref && !failed; r++)
         for (int d = 0; d < p.ndrives; d++) {
-            char what[160];
             int sl = slot(r, d);
-            if (!p.ref_ok[sl]) {
-                snprintf(what, sizeof what, "%.0f Hz: the reference could not be computed", rates[r]);
-                add_note("%s at %s", label, what);
-            } else if (p.unconverged[sl]) {
-                snprintf(what, sizeof what, "%.0f Hz, drive %d: the reference did not converge at %ld samples",
-                         rates[r], d + 1, p.unconverged[sl]);
-                add_note("%s at %s", label, what);
-            }
+            if (!p.refs.ok[sl])
+                bench_note("%s at %.0f Hz: the reference could not be computed", label, bench_rates[r]);
+            else if (p.refs.unconverged[sl])
+                bench_note("%s at %.0f Hz, drive %d: the reference did not converge at %ld samples", label,
+                           bench_rates[r], d + 1, p.refs.unconverged[sl]);
         }
-    for (int r = 0; r < NRATES && !failed; r++)
+    for (int r = 0; r < BENCH_NRATES && !failed; r++)
         for (int s = 0; s < p.ncases; s++)
             failed |= measure_voice(&p, label, r, s, seconds);
     prep_free(&p);
@@ -718,30 +492,16 @@ static int bench_netlist(const char *path, double seconds) {
 
 int main(int argc, char **argv) {
     double seconds = 0.3;
-    int first = 1;
-    if (argc > 2 && !strcmp(argv[1], "-t")) {
-        seconds = atof(argv[2]);
-        first = 3;
-    }
-    if (first >= argc || !(seconds > 0)) {
-        fprintf(stderr, "usage: deckbench [-t SECONDS] NETLIST...\n");
-        return 2;
-    }
-    for (int i = first; i < argc; i++) {
-        char label[64];
-        bench_label(argv[i], label, sizeof label);
-        if ((int)strlen(label) > name_width)
-            name_width = (int)strlen(label);
-    }
+    int first = bench_args(argc, argv, &seconds, &name_width, "deckbench [-t SECONDS] NETLIST...");
 
     printf("wdc deck benchmark: the SPICE decks' voices, their joint solves' Newton steps, and the\n"
            "single-diode solvers of a diode pair\n");
-    bench_print_setup(CFLAGS);
+    bench_print_setup(BENCH_CFLAGS);
     printf("ns/sample: one voice, blocks of %d frames, best of %d runs of >= %.2g s after a %.2g s warm-up,\n"
            "  cycling %.2g s of its drive: an input a deck's source drives gets the source's time function\n"
            "  (as wdc --render without --input), any other a %.0f Hz sine of amplitude %g (V, or the\n"
            "  input's unit), and %g too for a netlist that is not a deck.\n",
-           BLOCK, RUNS, seconds, WARMUP_S, TIMED_S, SINE_HZ, amps[0], amps[1]);
+           BLOCK, RUNS, seconds, WARMUP_S, TIMED_S, SINE_HZ, bench_amps[0], bench_amps[1]);
     printf("steps/solve, solves/sample, capped: a fresh voice's joint solves over %.2g s (solve_stats):\n"
            "  Newton steps per solve (the mean), solves per sample, solves stopped at the iteration cap;\n"
            "  -: no joint solve (a single-diode solver).\n",
@@ -755,20 +515,8 @@ int main(int argc, char **argv) {
     printf(ROW, name_width, "netlist", "solver", "rate", "drive", "ns/sample", "steps/solve", "solves/sample",
            "capped", "|y0-r0|", "dB vs converged");
     char dashes[80];
-    int nd = name_width < 79 ? name_width : 79;
-    memset(dashes, '-', (size_t)nd);
-    dashes[nd] = '\0';
+    bench_dashes(dashes, sizeof dashes, name_width);
     printf(ROW, name_width, dashes, "---------", "------", "----------", "---------", "-----------",
            "-------------", "------", "---------", "----------------");
-    fflush(stdout);
-
-    int failed = 0;
-    for (int i = first; i < argc; i++)
-        failed |= bench_netlist(argv[i], seconds);
-    if (nnotes) {
-        printf("\n");
-        for (int k = 0; k < nnotes; k++)
-            printf("note: %s\n", notes[k]);
-    }
-    return failed;
+    return bench_each(argc, argv, first, seconds, bench_netlist);
 }

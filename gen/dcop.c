@@ -270,3 +270,17 @@ bool dcop_solve(const Circuit *c, const double *params, const double *drive, dou
     }
     return true;
 }
+
+double *dcop_drives(const Circuit *c, const double *params) {
+    double *drive = arena_alloc(sizeof(double) * (size_t)(c->nelems + 1));
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        if (e->kind != E_V && e->kind != E_I)
+            continue;
+        if (e->input < 0)
+            drive[i] = elem_drive(c, e, params);
+        else if (c->input_fn[e->input])
+            drive[i] = srcfn_at(c->input_fn[e->input], 0, 1 / c->rate);
+    }
+    return drive;
+}

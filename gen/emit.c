@@ -2201,16 +2201,7 @@ static const char *dcop_nonlinear(Ctx *x) {
     const Circuit *c = x->c;
     if (!c->deck || c->uic || !x->settle || !x->nreact || !(x->nnl || x->nctl || x->ncc) || c->nwgs || x->nline)
         return NULL;
-    double *p = circuit_defaults(c), *drive = arena_alloc(sizeof(double) * (size_t)(c->nelems + 1));
-    for (int i = 0; i < c->nelems; i++) {
-        const Elem *e = &c->elems[i];
-        if (e->kind != E_V && e->kind != E_I)
-            continue;
-        if (e->input < 0)
-            drive[i] = elem_drive(c, e, p);
-        else if (c->input_fn[e->input])
-            drive[i] = srcfn_at(c->input_fn[e->input], 0, 1 / c->rate);
-    }
+    double *p = circuit_defaults(c), *drive = dcop_drives(c, p);
     double *nodev = arena_alloc(sizeof(double) * (size_t)(c->nnodes + 1));
     double *cur = arena_alloc(sizeof(double) * (size_t)(c->nelems + 1));
     if (!dcop_solve(c, p, drive, nodev, cur)) {

@@ -673,6 +673,10 @@ int scatter_dense_solve(double *A, int n, double *b);
  * within its bounds (160 unknowns, 2000 Newton iterations) or the circuit
  * has lines, waveguides or stored laws. */
 bool dcop_solve(const Circuit *c, const double *params, const double *drive, double *nodev, double *cur);
+/* The drives of the operating point, drive[nelems] (in the arena): each
+ * source's constant value at the params, or its input's time function's
+ * first value (0 for an input without one); 0 for other elements. */
+double *dcop_drives(const Circuit *c, const double *params);
 
 /* Solves the root adaptor's matrix M for port resistances R (one per port
  * edge) and returns 0, or -1 if the core is singular. */

@@ -107,23 +107,11 @@ static const char *net_path(const net *t) {
 typedef enum { SINE, NOISE, STEPS, NDRIVES } drive_kind;
 static const char *const drive_name[NDRIVES] = {"sine", "noise", "steps"};
 
+/* Half a volt of sine or noise, or levels of up to a volt held 1 to 16
+ * samples. */
 static void make_drive(drive_kind d, double fs, long n, uint64_t seed, double *x) {
-    tl_rng r;
-    tl_rng_seed(&r, seed);
-    double hold = 0, v = 0;
-    for (long k = 0; k < n; k++) {
-        if (d == SINE)
-            x[k] = 0.5 * sin(2 * M_PI * 440.0 * (double)k / fs);
-        else if (d == NOISE)
-            x[k] = 0.5 * tl_rng_signed(&r);
-        else {
-            if (hold-- <= 0) {
-                v = tl_rng_signed(&r);
-                hold = (double)(tl_rng_next(&r) % 16);
-            }
-            x[k] = v;
-        }
-    }
+    static const tl_drive_kind kind[NDRIVES] = {TL_DRIVE_SINE, TL_DRIVE_NOISE, TL_DRIVE_STEPS};
+    tl_drive(kind[d], d == STEPS ? 1 : 0.5, 16, fs, n, seed, x);
 }
 
 /* Largest |a - b| over the largest |b|, in dB (-400 for exact). */

@@ -58,7 +58,6 @@
 
 #include "testlib.h"
 
-#define MAXOUT 4
 #define TOL_DOUBLE_DB (-200.0)
 #define FLOAT_FACTOR 8.0
 #define TOL_FLOAT_DB (-100.0)
@@ -171,105 +170,44 @@ static void test_inductance_identity(void **state) {
 typedef struct net {
     const char *name;
     const char *text;
-    /* nodes only diodes tie to the rest while all block: refsim's Newton
-     * may stop at its cap there (see test_joint.c) */
-    int floating;
 } net;
 
 static const net nets[] = {
     {"xfmr",
      ".input in\nV1 x 0 in R=100\nL1 x 0 10m\nL2 b 0 40m\nK1 L1 L2 0.99\nRL b 0 1k\nC1 b 0 10n\n"
-     ".output b v(b)\n.output i i(L1)\n",
-     0},
+     ".output b v(b)\n.output i i(L1)\n"},
     {"xf3",
      ".input in\nV1 x 0 in R=50\nL1 x 0 10m\nL2 a c 2.5m\nL3 c b 3m\nK1 L1 L2 -0.72\nK2 L3 L1 0.855\nK3 L2 L3 -0.76\n"
-     "Ra a 0 1k\nRc c 0 10\nRb b 0 2.2k\nCb b 0 47n\n.output a v(a)\n.output b v(b)\n.output i i(L3)\n",
-     0},
+     "Ra a 0 1k\nRc c 0 10\nRb b 0 2.2k\nCb b 0 47n\n.output a v(a)\n.output b v(b)\n.output i i(L3)\n"},
     {"xf_rect",
      ".input in\nV1 x 0 in R=10\nL1 x 0 100m\nL2 s t 25m\nK1 L1 L2 0.98\nRt t 0 1meg\n"
      ".model dr diode Is=7n n=1.8\nD1 s p dr\nD2 t p dr\nD3 0 s dr\nD4 0 t dr\nC1 p 0 10u\nRL p 0 1k\n"
-     ".output p v(p)\n.output s v(s,t)\n",
-     1},
+     ".output p v(p)\n.output s v(s,t)\n"},
 };
 #define NNETS ((int)(sizeof nets / sizeof nets[0]))
 
-typedef enum { SINE, NOISE, STEPS, NDRIVES } drive_kind;
-static const char *const drive_name[NDRIVES] = {"sine", "noise", "steps"};
+static const struct {
+    const char *name;
+    tl_drive_kind kind;
+} drives[] = {{"sine", TL_DRIVE_SINE}, {"noise", TL_DRIVE_NOISE}, {"steps", TL_DRIVE_STEPS}};
+#define NDRIVES ((int)(sizeof drives / sizeof drives[0]))
 
-static void make_drive(drive_kind d, double fs, long n, uint64_t seed, double *x) {
-    tl_rng r;
-    tl_rng_seed(&r, seed);
-    double hold = 0, v = 0;
-    for (long k = 0; k < n; k++) {
-        switch (d) {
-        case SINE: x[k] = 5 * sin(2 * M_PI * 440.0 * (double)k / fs); break;
-        case NOISE: x[k] = tl_rng_signed(&r); break;
-        default:
-            if (hold-- <= 0) {
-                v = 5 * tl_rng_signed(&r);
-                hold = (double)(tl_rng_next(&r) % 8);
-            }
-            x[k] = v;
-        }
-    }
-}
-
-/* Largest |a - b| over the largest |b|, in dB (-400 for exact). */
-static double err_db(const double *a, const double *b, long n) {
-    double e = 0, p = 0;
-    for (long k = 0; k < n; k++) {
-        e = fmax(e, fabs(a[k] - b[k]));
-        p = fmax(p, fabs(b[k]));
-    }
-    return e > 0 && p > 0 ? 20 * log10(e / p) : -400;
-}
-
-/* The voice and refsim (and refsim with its state rounded to the voice's
- * precision) over x: the worst output's error and the floor, in dB. */
-static void run_pair(const Circuit *c, const wdv_class *cls, double fs, const double *x, long n, int floating,
-                     double *db, double *floor_db) {
-    void *st = tl_state_new(cls, fs);
-    assert_non_null(st);
-    refsim *rs = refsim_new(c, fs, NULL), *rf = refsim_new(c, fs, NULL);
-    assert_non_null(rs);
-    assert_non_null(rf);
-    refsim_round_state(rf, cls->precision);
-    assert_true(c->nouts <= MAXOUT);
-    double **vo = tl_bufs_new(MAXOUT, n), **ro = tl_bufs_new(MAXOUT, n), **fo = tl_bufs_new(MAXOUT, n);
-    assert_non_null(vo);
-    assert_non_null(ro);
-    assert_non_null(fo);
-    double *op[MAXOUT], y[MAXOUT], yf[MAXOUT];
-    for (long pos = 0; pos < n; pos += 64) {
-        int b = n - pos < 64 ? (int)(n - pos) : 64;
-        const double *ip[1] = {x + pos};
-        for (int k = 0; k < c->nouts; k++)
-            op[k] = vo[k] + pos;
-        cls->process(st, ip, op, b);
-    }
-    for (long k = 0; k < n; k++) {
-        refsim_step(rs, &x[k], y);
-        refsim_step(rf, &x[k], yf);
-        for (int j = 0; j < c->nouts; j++) {
-            ro[j][k] = y[j];
-            fo[j][k] = yf[j];
-        }
-    }
-    *db = *floor_db = -400;
-    for (int j = 0; j < c->nouts; j++) {
-        *db = fmax(*db, err_db(vo[j], ro[j], n));
-        *floor_db = fmax(*floor_db, err_db(fo[j], ro[j], n));
-    }
-    refsim_nl_info info;
-    refsim_nl_stats(rs, &info);
-    if (info.unconverged && !floating)
-        fail_msg("the reference stopped at its cap at %ld of %ld samples", info.unconverged, info.steps);
-    tl_bufs_free(vo, MAXOUT);
-    tl_bufs_free(ro, MAXOUT);
-    tl_bufs_free(fo, MAXOUT);
-    refsim_free(rs);
-    refsim_free(rf);
-    tl_state_free(st);
+/* The voice and refsim over x (and refsim with its state rounded to the
+ * voice's precision): the worst output's relative RMS error and the
+ * floor's, in dB. */
+static void run_pair(const Circuit *c, const wdv_class *cls, double fs, const double *x, long n, double *db,
+                     double *floor_db) {
+    tl_run_opts o = {0};
+    o.fs = fs;
+    o.nframes = n;
+    o.input = &x;
+    o.with_floor = cls->precision;
+    tl_run r;
+    assert_int_equal(tl_run_side_by_side(c, cls, &o, &r), 0);
+    assert_true(r.have_ref);
+    *db = tl_db(tl_run_worst(&r, NULL));
+    *floor_db = tl_db(tl_run_floor(&r));
+    tl_run_free(&r);
 }
 
 static void test_against_refsim(void **state) {
@@ -291,13 +229,13 @@ static void test_against_refsim(void **state) {
                 long n = (long)(0.03 * fs);
                 double *x = malloc(sizeof(double) * (size_t)n);
                 assert_non_null(x);
-                make_drive((drive_kind)d, fs, n, 0x6b6bu + (uint64_t)(t * 16 + d), x);
-                run_pair(c, vd.cls, fs, x, n, nets[t].floating, &db, &fl64);
-                run_pair(c, vf.cls, fs, x, n, nets[t].floating, &dbf, &fl);
+                tl_drive(drives[d].kind, 5, 8, fs, n, 0x6b6bu + (uint64_t)(t * 16 + d), x);
+                run_pair(c, vd.cls, fs, x, n, &db, &fl64);
+                run_pair(c, vf.cls, fs, x, n, &dbf, &fl);
                 free(x);
                 double ftol = fmax(TOL_FLOAT_DB, fl + 20 * log10(FLOAT_FACTOR));
                 bool bad = !(db <= TOL_DOUBLE_DB) || !(dbf <= ftol);
-                print_message("%-8s %-6s %7.0f %10.1f %10.1f %10.1f%s\n", nets[t].name, drive_name[d], fs, db, dbf,
+                print_message("%-8s %-6s %7.0f %10.1f %10.1f %10.1f%s\n", nets[t].name, drives[d].name, fs, db, dbf,
                               fl, bad ? "  FAILED" : "");
                 failed |= bad;
             }
@@ -329,92 +267,28 @@ static const deck decks[] = {
 };
 #define NDECKS ((int)(sizeof decks / sizeof decks[0]))
 
-typedef struct refdata {
-    double v[NDECKS][MAXVEC][MAXREF];
-    int n[NDECKS];
-} refdata;
-
-static int read_row(const char *line, const char *path, int lineno, void *ctx) {
-    refdata *rd = ctx;
-    const char *comma = strchr(line, ',');
-    int d = -1;
-    for (int k = 0; k < NDECKS && comma; k++)
-        if ((size_t)(comma - line) == strlen(decks[k].name) && !strncmp(line, decks[k].name, strlen(decks[k].name)))
-            d = k;
-    if (d < 0) {
-        fprintf(stderr, "%s:%d: unknown deck\n", path, lineno);
-        return -1;
-    }
-    char *end;
-    double t = strtod(comma + 1, &end);
-    long m = lround(t * FS_REF);
-    if (m < 0 || m >= MAXREF || fabs(t * FS_REF - (double)m) > 1e-6 || m != rd->n[d]) {
-        fprintf(stderr, "%s:%d: unexpected time\n", path, lineno);
-        return -1;
-    }
-    for (int k = 0; k < decks[d].nvec; k++) {
-        if (*end != ',') {
-            fprintf(stderr, "%s:%d: too few values\n", path, lineno);
-            return -1;
-        }
-        rd->v[d][k][m] = strtod(end + 1, &end);
-    }
-    rd->n[d]++;
-    return 0;
-}
-
-/* Renders tests/nets/NAME.cir at fs = FS_REF * over; y[k][m]: vector k
- * at t = m / FS_REF. */
-static void render(const deck *dk, int over, double y[MAXVEC][MAXREF], long nref) {
-    char cmd[1024], path[256], line[512];
-    if (!dir[0])
-        assert_int_equal(tl_temp_dir(dir, "coupled"), 0);
-    snprintf(cmd, sizeof cmd,
-             "bin/wdc tests/nets/%s.cir --render %s/o.wav --csv %s/o.csv --rate %g --seconds %.9g 2>/dev/null",
-             dk->name, dir, dir, FS_REF * over, dk->seconds + 1.5 / FS_REF);
-    assert_int_equal(tl_system(cmd), 0);
-    snprintf(path, sizeof path, "%s/o.csv", dir);
-    FILE *f = fopen(path, "r");
-    assert_non_null(f);
-    long n = 0;
-    while (fgets(line, sizeof line, f)) {
-        if (n % over == 0 && n / over < nref) {
-            char *p = line;
-            for (int k = 0; k < dk->nvec; k++) {
-                y[k][n / over] = strtod(p, &p);
-                p += *p == ',';
-            }
-        }
-        n++;
-    }
-    fclose(f);
-    assert_true(n >= (nref - 1) * over + 1);
-}
-
-static double rel_rms(const double *y, const double *r, long n) {
-    double e = 0, p = 0;
-    for (long k = 0; k < n; k++) {
-        e += (y[k] - r[k]) * (y[k] - r[k]);
-        p += r[k] * r[k];
-    }
-    return sqrt(e / p);
-}
-
 static void test_against_ngspice(void **state) {
     (void)state;
-    static refdata rd;
-    memset(&rd, 0, sizeof rd);
-    assert_int_equal(tl_read_csv(CSV_PATH, "deck", "sh tests/ref/coupled_ngspice.sh", read_row, &rd), 0);
-    static double y48[MAXVEC][MAXREF], y192[MAXVEC][MAXREF];
+    tl_tran ref[NDECKS];
+    for (int d = 0; d < NDECKS; d++)
+        ref[d] = (tl_tran){.name = decks[d].name, .nvec = decks[d].nvec};
+    assert_int_equal(tl_tran_read(CSV_PATH, "sh tests/ref/coupled_ngspice.sh", FS_REF, ref, NDECKS), 0);
+    if (!dir[0])
+        assert_int_equal(tl_temp_dir(dir, "coupled"), 0);
+    double **y48 = tl_bufs_new(MAXVEC, MAXREF), **y192 = tl_bufs_new(MAXVEC, MAXREF);
+    assert_non_null(y48);
+    assert_non_null(y192);
     int failed = 0;
     for (int d = 0; d < NDECKS; d++) {
         const deck *dk = &decks[d];
-        long nref = rd.n[d];
+        long nref = ref[d].n;
+        char path[128];
+        snprintf(path, sizeof path, "tests/nets/%s.cir", dk->name);
         assert_int_equal(nref, lround(dk->seconds * FS_REF) + 1);
-        render(dk, 1, y48, nref);
-        render(dk, 4, y192, nref);
+        assert_int_equal(tl_render_deck(path, dir, FS_REF, 1, dk->seconds, dk->nvec, y48, nref), 0);
+        assert_int_equal(tl_render_deck(path, dir, FS_REF, 4, dk->seconds, dk->nvec, y192, nref), 0);
         for (int k = 0; k < dk->nvec; k++) {
-            double e48 = rel_rms(y48[k], rd.v[d][k], nref), e192 = rel_rms(y192[k], rd.v[d][k], nref);
+            double e48 = rel_rms_error(y48[k], ref[d].v[k], nref), e192 = rel_rms_error(y192[k], ref[d].v[k], nref);
             bool bad = !(tl_db(e48) < dk->bound48[k]) || !(tl_db(e192) < dk->bound192[k]) || !(e48 / e192 >= MIN_RATIO);
             print_message("%-9s vector %d: 48 kHz %6.1f dB (bound %5.1f), 192 kHz %6.1f dB (bound %5.1f), ratio %5.2f "
                           "(second order: 16; asserted >= %g)%s\n",
@@ -423,6 +297,9 @@ static void test_against_ngspice(void **state) {
             failed |= bad;
         }
     }
+    tl_bufs_free(y48, MAXVEC);
+    tl_bufs_free(y192, MAXVEC);
+    tl_tran_free(ref, NDECKS);
     if (failed)
         fail_msg("a deck with coupled inductors is off ngspice");
 }

@@ -94,22 +94,9 @@ typedef enum { SINE1, SINE10, NOISE1, STEPS10, NDRIVES } drive_kind;
 static const char *const drive_name[NDRIVES] = {"sine 1 V", "sine 10 V", "noise 1 V", "steps 10 V"};
 
 static void make_drive(drive_kind d, double fs, long n, uint64_t seed, double *x) {
-    tl_rng r;
-    tl_rng_seed(&r, seed);
-    double hold = 0, v = 0;
-    for (long k = 0; k < n; k++) {
-        switch (d) {
-        case SINE1: x[k] = sin(2 * M_PI * 440.0 * (double)k / fs); break;
-        case SINE10: x[k] = 10 * sin(2 * M_PI * 440.0 * (double)k / fs); break;
-        case NOISE1: x[k] = tl_rng_signed(&r); break;
-        default:
-            if (hold-- <= 0) {
-                v = 10 * tl_rng_signed(&r);
-                hold = (double)(tl_rng_next(&r) % 8);
-            }
-            x[k] = v;
-        }
-    }
+    static const tl_drive_kind kind[NDRIVES] = {TL_DRIVE_SINE, TL_DRIVE_SINE, TL_DRIVE_NOISE, TL_DRIVE_STEPS};
+    static const double amp[NDRIVES] = {1, 10, 1, 10};
+    tl_drive(kind[d], amp[d], 8, fs, n, seed, x);
 }
 
 static const char *write_net(const net *t, char *path, size_t cap) {

@@ -106,58 +106,26 @@ static const deck decks[] = {
 };
 #define NDECKS ((int)(sizeof decks / sizeof decks[0]))
 
-typedef struct refdata {
-    double v[NDECKS][MAXVEC][MAXREF];
-    int n[NDECKS];
-} refdata;
-
-static int read_row(const char *line, const char *path, int lineno, void *ctx) {
-    refdata *rd = ctx;
-    const char *comma = strchr(line, ',');
-    int d = -1;
-    for (int k = 0; k < NDECKS && comma; k++)
-        if ((size_t)(comma - line) == strlen(decks[k].name) && !strncmp(line, decks[k].name, strlen(decks[k].name)))
-            d = k;
-    if (d < 0) {
-        fprintf(stderr, "%s:%d: unknown deck\n", path, lineno);
-        return -1;
-    }
-    char *end;
-    double t = strtod(comma + 1, &end);
-    long m = lround(t * FS_REF);
-    if (m < 0 || m >= MAXREF || fabs(t * FS_REF - (double)m) > 1e-6 || m != rd->n[d]) {
-        fprintf(stderr, "%s:%d: unexpected time\n", path, lineno);
-        return -1;
-    }
-    for (int k = 0; k < decks[d].nvec; k++) {
-        if (*end != ',') {
-            fprintf(stderr, "%s:%d: too few values\n", path, lineno);
-            return -1;
-        }
-        rd->v[d][k][m] = strtod(end + 1, &end);
-    }
-    rd->n[d]++;
-    return 0;
-}
+static tl_tran ref[NDECKS];
 
 static int setup(void **st) {
-    refdata *rd = calloc(1, sizeof *rd);
-    if (!rd || tl_read_csv(CSV_PATH, "deck", "sh tests/ref/joint_ngspice.sh", read_row, rd) != 0) {
-        free(rd);
-        return -1;
-    }
+    (void)st;
     for (int d = 0; d < NDECKS; d++)
-        if (rd->n[d] != lround(decks[d].seconds * FS_REF) + 1) {
-            fprintf(stderr, "%s: %d rows for %s\n", CSV_PATH, rd->n[d], decks[d].name);
-            free(rd);
+        ref[d] = (tl_tran){.name = decks[d].name, .nvec = decks[d].nvec};
+    if (tl_tran_read(CSV_PATH, "sh tests/ref/joint_ngspice.sh", FS_REF, ref, NDECKS) != 0)
+        return -1;
+    for (int d = 0; d < NDECKS; d++)
+        if (ref[d].n != lround(decks[d].seconds * FS_REF) + 1) {
+            fprintf(stderr, "%s: %ld rows for %s\n", CSV_PATH, ref[d].n, decks[d].name);
+            tl_tran_free(ref, NDECKS);
             return -1;
         }
-    *st = rd;
     return 0;
 }
 
 static int teardown(void **st) {
-    free(*st);
+    (void)st;
+    tl_tran_free(ref, NDECKS);
     return 0;
 }
 
@@ -192,27 +160,10 @@ static void write_variant(const char *dir, const deck *dk) {
 
 /* Renders the variant at fs = FS_REF * over; y[k][m]: vector k at
  * t = m / FS_REF. */
-static void render(const char *dir, const deck *dk, int over, double y[MAXVEC][MAXREF], long nref) {
-    char cmd[1024], path[256], line[512];
-    snprintf(cmd, sizeof cmd, "bin/wdc %s/%s.cir --render %s/o.wav --csv %s/o.csv --rate %g --seconds %.9g 2>/dev/null",
-             dir, dk->name, dir, dir, FS_REF * over, dk->seconds + 1.5 / FS_REF);
-    assert_int_equal(tl_system(cmd), 0);
-    snprintf(path, sizeof path, "%s/o.csv", dir);
-    FILE *f = fopen(path, "r");
-    assert_non_null(f);
-    long n = 0;
-    while (fgets(line, sizeof line, f)) {
-        if (n % over == 0 && n / over < nref) {
-            char *p = line;
-            for (int k = 0; k < dk->nvec; k++) {
-                y[k][n / over] = strtod(p, &p);
-                p += *p == ',';
-            }
-        }
-        n++;
-    }
-    fclose(f);
-    assert_true(n >= (nref - 1) * over + 1);
+static void render(const char *dir, const deck *dk, int over, double **y, long nref) {
+    char path[256];
+    snprintf(path, sizeof path, "%s/%s.cir", dir, dk->name);
+    assert_int_equal(tl_render_deck(path, dir, FS_REF, over, dk->seconds, dk->nvec, y, nref), 0);
 }
 
 /* Word k of s (space-separated) into buf. */
@@ -224,14 +175,16 @@ static const char *word(const char *s, int k, char buf[64]) {
 }
 
 static void test_decks_vs_ngspice(void **st) {
-    const refdata *rd = *st;
-    static double y[4][MAXVEC][MAXREF];
+    (void)st;
+    double **y[4];
+    for (int r = 0; r < 4; r++)
+        assert_non_null(y[r] = tl_bufs_new(MAXVEC, MAXREF));
     char dir[64];
     assert_int_equal(tl_temp_dir(dir, "joint_spice"), 0);
     int failed = 0;
     for (int d = 0; d < NDECKS; d++) {
         const deck *dk = &decks[d];
-        long nref = rd->n[d];
+        long nref = ref[d].n;
         write_variant(dir, dk);
         render(dir, dk, 1, y[0], nref);
         render(dir, dk, 4, y[1], nref);
@@ -242,8 +195,8 @@ static void test_decks_vs_ngspice(void **st) {
         }
         for (int k = 0; k < dk->nvec; k++) {
             char name[64];
-            double e48 = rel_rms_error(y[0][k], rd->v[d][k], nref), e192 = rel_rms_error(y[1][k], rd->v[d][k], nref);
-            double ratio = own ? rel_rms_error(y[2][k], rd->v[d][k], nref) / rel_rms_error(y[3][k], rd->v[d][k], nref)
+            double e48 = rel_rms_error(y[0][k], ref[d].v[k], nref), e192 = rel_rms_error(y[1][k], ref[d].v[k], nref);
+            double ratio = own ? rel_rms_error(y[2][k], ref[d].v[k], nref) / rel_rms_error(y[3][k], ref[d].v[k], nref)
                                : e48 / e192;
             bool bad = !(tl_db(e48) < dk->bound48[k]) || !(tl_db(e192) < dk->bound192[k]) || !(ratio >= MIN_RATIO);
             print_message("%-13s %-7s 48 kHz %7.1f dB (bound %5.1f), 192 kHz %7.1f dB (bound %5.1f), ratio %6.2f "
@@ -254,6 +207,8 @@ static void test_decks_vs_ngspice(void **st) {
         }
     }
     tl_remove_dir(dir);
+    for (int r = 0; r < 4; r++)
+        tl_bufs_free(y[r], MAXVEC);
     if (failed)
         fail_msg("a deck is off ngspice");
 }

@@ -529,7 +529,7 @@ int tl_run_side_by_side(const Circuit *c, const wdv_class *cls,
     }
     for (int k = 0; k < nin; k++)
         for (long n = 0; n < N; n++)
-            r->in[k][n] = o->signal ? tl_signal_next(o->signal, k, n) : 0.0;
+            r->in[k][n] = o->input ? o->input[k][n] : o->signal ? tl_signal_next(o->signal, k, n) : 0.0;
 
     if (o->params0)
         for (int p = 0; p < c->nparams; p++) {
@@ -817,6 +817,131 @@ int tl_read_csv(const char *path, const char *header, const char *regen,
         }
     }
     fclose(f);
+    return 0;
+}
+
+void tl_drive(tl_drive_kind kind, double amp, int hold, double fs, long n, uint64_t seed, double *x) {
+    tl_rng r;
+    tl_rng_seed(&r, seed);
+    double left = 0, v = 0;
+    for (long k = 0; k < n; k++) {
+        if (kind == TL_DRIVE_SINE)
+            x[k] = amp * sin(2 * M_PI * 440.0 * (double)k / fs);
+        else if (kind == TL_DRIVE_NOISE)
+            x[k] = amp * tl_rng_signed(&r);
+        else {
+            if (left-- <= 0) {
+                v = amp * tl_rng_signed(&r);
+                left = (double)(tl_rng_next(&r) % (uint64_t)hold);
+            }
+            x[k] = v;
+        }
+    }
+}
+
+/* ---- transients of SPICE decks against ngspice ---- */
+
+typedef struct tran_ctx {
+    tl_tran *decks;
+    int ndecks;
+    double fs;
+} tran_ctx;
+
+static int tran_row(const char *line, const char *path, int lineno, void *vctx) {
+    tran_ctx *x = vctx;
+    const char *comma = strchr(line, ',');
+    tl_tran *d = NULL;
+    for (int k = 0; k < x->ndecks && comma; k++)
+        if ((size_t)(comma - line) == strlen(x->decks[k].name) && !strncmp(line, x->decks[k].name, (size_t)(comma - line)))
+            d = &x->decks[k];
+    if (!d) {
+        fprintf(stderr, "%s:%d: unknown deck\n", path, lineno);
+        return -1;
+    }
+    char *end;
+    double t = strtod(comma + 1, &end);
+    long m = lround(t * x->fs);
+    if (fabs(t * x->fs - (double)m) > 1e-6 || m != d->n) {
+        fprintf(stderr, "%s:%d: unexpected time\n", path, lineno);
+        return -1;
+    }
+    if (d->n % 1024 == 0)
+        for (int k = 0; k < d->nvec; k++) {
+            double *v = realloc(d->v[k], sizeof(double) * (size_t)(d->n + 1024));
+            if (!v) {
+                fprintf(stderr, "%s:%d: out of memory\n", path, lineno);
+                return -1;
+            }
+            d->v[k] = v;
+        }
+    for (int k = 0; k < d->nvec; k++) {
+        if (*end != ',') {
+            fprintf(stderr, "%s:%d: too few values\n", path, lineno);
+            return -1;
+        }
+        d->v[k][m] = strtod(end + 1, &end);
+    }
+    d->n++;
+    return 0;
+}
+
+int tl_tran_read(const char *path, const char *regen, double fs, tl_tran *decks, int ndecks) {
+    for (int d = 0; d < ndecks; d++) {
+        decks[d].n = 0;
+        for (int k = 0; k < TL_TRAN_MAXVEC; k++)
+            decks[d].v[k] = NULL;
+        if (decks[d].nvec < 1 || decks[d].nvec > TL_TRAN_MAXVEC) {
+            fprintf(stderr, "testlib: deck %s: %d vectors\n", decks[d].name, decks[d].nvec);
+            return -1;
+        }
+    }
+    tran_ctx x = {decks, ndecks, fs};
+    if (tl_read_csv(path, "deck", regen, tran_row, &x) != 0) {
+        tl_tran_free(decks, ndecks);
+        return -1;
+    }
+    return 0;
+}
+
+void tl_tran_free(tl_tran *decks, int ndecks) {
+    for (int d = 0; d < ndecks; d++)
+        for (int k = 0; k < TL_TRAN_MAXVEC; k++) {
+            free(decks[d].v[k]);
+            decks[d].v[k] = NULL;
+        }
+}
+
+int tl_render_deck(const char *path, const char *dir, double fs, int over, double seconds, int nvec, double **y,
+                   long nref) {
+    char cmd[1024], csv[256], line[1024];
+    snprintf(cmd, sizeof cmd, "bin/wdc %s --render %s/o.wav --csv %s/o.csv --rate %.17g --seconds %.9g 2>/dev/null",
+             path, dir, dir, fs * over, seconds + 1.5 / fs);
+    if (tl_system(cmd) != 0) {
+        fprintf(stderr, "testlib: %s failed\n", cmd);
+        return -1;
+    }
+    snprintf(csv, sizeof csv, "%s/o.csv", dir);
+    FILE *f = fopen(csv, "r");
+    if (!f) {
+        fprintf(stderr, "testlib: cannot read %s\n", csv);
+        return -1;
+    }
+    long n = 0;
+    while (fgets(line, sizeof line, f)) {
+        if (n % over == 0 && n / over < nref) {
+            char *p = line;
+            for (int k = 0; k < nvec; k++) {
+                y[k][n / over] = strtod(p, &p);
+                p += *p == ',';
+            }
+        }
+        n++;
+    }
+    fclose(f);
+    if (n < (nref - 1) * over + 1) {
+        fprintf(stderr, "testlib: %s rendered %ld samples, wanted %ld\n", path, n, (nref - 1) * over + 1);
+        return -1;
+    }
     return 0;
 }
 

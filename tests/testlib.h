@@ -209,6 +209,41 @@ void tl_signal_init(tl_signal *s, tl_sigkind kind, double amp, long at,
 /* Sample n of input k; for each input, n must run 0, 1, 2, ... */
 double tl_signal_next(tl_signal *s, int input, long n);
 
+/* The drives of the tests that compare voices with refsim: n samples at
+ * rate fs into x, a 440 Hz sine of amplitude amp (TL_DRIVE_SINE),
+ * uniform noise in [-amp, amp) (TL_DRIVE_NOISE), or random levels in
+ * [-amp, amp) each held for 1 to `hold` samples (TL_DRIVE_STEPS); the
+ * random ones drawn from `seed`. */
+typedef enum { TL_DRIVE_SINE, TL_DRIVE_NOISE, TL_DRIVE_STEPS } tl_drive_kind;
+void tl_drive(tl_drive_kind kind, double amp, int hold, double fs, long n, uint64_t seed, double *x);
+
+/* ---- transients of SPICE decks against ngspice ---- */
+
+#define TL_TRAN_MAXVEC 4
+
+/* One deck's rows of a reference CSV, "deck,t,v1[,v2...]" (the header
+ * line starting "deck"), as the scripts in tests/ref write them: its
+ * vectors sampled at t = m / fs, m = 0, 1, ... */
+typedef struct tl_tran {
+    const char *name; /* set by the caller */
+    int nvec;         /* set by the caller */
+    long n;           /* rows read */
+    double *v[TL_TRAN_MAXVEC];
+} tl_tran;
+
+/* Reads the rows of the ndecks decks (name and nvec set) from path, made
+ * by the command regen, sampled at rate fs; every row must name one of
+ * them, its times must run m / fs from 0 and it must hold nvec values.
+ * Returns 0, or -1 after printing what is wrong (what was read freed). */
+int tl_tran_read(const char *path, const char *regen, double fs, tl_tran *decks, int ndecks);
+void tl_tran_free(tl_tran *decks, int ndecks);
+/* Renders the deck at `path` with `bin/wdc PATH --render --csv --rate
+ * fs*over --seconds` (a little over `seconds`) into dir and reads its
+ * first nvec outputs: y[k][m] = output k at t = m / fs, m < nref.
+ * Returns 0, or -1 after printing what failed. */
+int tl_render_deck(const char *path, const char *dir, double fs, int over, double seconds, int nvec, double **y,
+                   long nref);
+
 /* ---- parameter changes ---- */
 
 typedef struct tl_change {
@@ -230,6 +265,7 @@ typedef struct tl_run_opts {
     double fs;
     long nframes;
     tl_signal *signal;        /* inputs; NULL: silence */
+    const double *const *input; /* or given: input[k][n] (NULL: signal's) */
     const tl_change *changes; /* sorted by at */
     int nchanges;
     int block;                /* frames per process call; 0: 64 */

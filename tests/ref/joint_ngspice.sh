@@ -55,49 +55,9 @@ trap 'rm -rf "$WORK"' EXIT INT TERM
 FS=48000
 TSTEP=2.0833333333333333e-05
 
-# deck NAME TSTOP "VECTORS" OPTIONS TMAX DATAFILE: the reference deck on
-# stdout (the IC= of its elements left out)
-deck() {
-    awk '
-        NR == 1 { print; next }
-        tolower($1) ~ /^\.(tran|print|end)$/ { next }
-        { for (k = 1; k <= NF; k++) if (toupper($k) !~ /^IC=/) printf "%s%s", (k > 1 ? " " : ""), $k; printf "\n" }' \
-        "netlists/$1.cir"
-    printf '.options %s\n.control\nset numdgt=16\n' "$4"
-    printf 'tran %s %s 0 %s\nwrdata %s %s\n.endc\n.end\n' "$TSTEP" "$2" "$5" "$6" "$3"
-}
-
+PROG=joint_ngspice
 : >"$WORK/all.csv" || exit 1
-run() { # NAME TSTOP "VECTORS" "OPTIONS"
-    nvec=$(echo "$3" | wc -w)
-    nsamp=$(awk -v t="$2" -v fs="$FS" 'BEGIN { u = t; sub(/m$/, "", u); printf "%d", u * fs / 1000 + 0.5 }')
-    for TMAX in 10n 5n; do
-        deck "$1" "$2" "$3" "$4" "$TMAX" "$WORK/raw_$1_$TMAX.dat" >"$WORK/$1_$TMAX.cir"
-        run_deck "$WORK/$1_$TMAX.cir" "$WORK/$1_$TMAX.log" "$WORK/raw_$1_$TMAX.dat"
-        sample "$FS" "$nsamp" "$nvec" <"$WORK/raw_$1_$TMAX.dat" >"$WORK/s_$1_$TMAX.txt" || exit 1
-    done
-    paste -d ' ' "$WORK/s_$1_10n.txt" "$WORK/s_$1_5n.txt" | awk -v name="$1" -v nvec="$nvec" -v vecs="$3" '
-        function abs(x) { return x < 0 ? -x : x }
-        {
-            for (k = 1; k <= nvec; k++) {
-                c = $(2 * k); l = $(2 * k + 1); c5 = $(2 * nvec + 1 + 2 * k)
-                if (abs(c - l) > dl[k]) dl[k] = abs(c - l)
-                if (abs(c - c5) > ds[k]) ds[k] = abs(c - c5)
-                if (abs(c) > pk[k]) pk[k] = abs(c)
-            }
-        }
-        END {
-            split(vecs, v, " ")
-            for (k = 1; k <= nvec; k++)
-                printf "joint_ngspice: %s %s: peak %.6g; max |10 ns run - 5 ns run| %.3g; " \
-                       "max |cubic - line| %.3g\n", name, v[k], pk[k], ds[k], dl[k]
-        }'
-    awk -v name="$1" -v nvec="$nvec" '{
-        printf "%s,%s", name, $1
-        for (k = 1; k <= nvec; k++) printf ",%s", $(2 * k)
-        printf "\n"
-    }' "$WORK/s_$1_10n.txt" >>"$WORK/all.csv" || exit 1
-}
+run() { tran_ref "netlists/$1.cir" "$@"; }
 
 run clipper_asym 20m "v(out) v(mid)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 run tubescreamer 20m "v(out) v(n)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"

@@ -15,6 +15,19 @@
 #                     straight line between the two nearest points (their
 #                     difference is about the coarser one's error, so a
 #                     bound on the cubic's)
+# tran_ref DECK NAME TSTOP "VECTORS" "OPTIONS"
+#                     runs the deck file DECK as written but for its IC=
+#                     values and its .tran, .print and .end lines, from its
+#                     DC operating point, with .options OPTIONS and a
+#                     .control block: the transient to TSTOP (e.g. 20m) with
+#                     a maximum step of 10 ns, then again with 5 ns;
+#                     appends to $WORK/all.csv a row "NAME,t,v1,..." per
+#                     sample at t = m/$FS (the cubic of the 10 ns run, 17
+#                     digits) and prints, per vector, the largest
+#                     difference between the runs and between the cubic and
+#                     the straight line (bounds on the reference's own
+#                     error).  Needs WORK, FS and TSTEP (1/FS) set, and
+#                     PROG (the script's name, for its messages).
 
 need_ngspice() {
     command -v ngspice >/dev/null 2>&1 && return 0
@@ -65,4 +78,42 @@ sample() {
             printf "\n"
         }
     }'
+}
+
+tran_ref() {
+    nvec=$(echo "$4" | wc -w)
+    nsamp=$(awk -v t="$3" -v fs="$FS" 'BEGIN { u = t; sub(/m$/, "", u); printf "%d", u * fs / 1000 + 0.5 }')
+    for TMAX in 10n 5n; do
+        {
+            awk '
+                NR == 1 { print; next }
+                tolower($1) ~ /^\.(tran|print|end)$/ { next }
+                { for (k = 1; k <= NF; k++) if (toupper($k) !~ /^IC=/) printf "%s%s", (k > 1 ? " " : ""), $k; printf "\n" }' "$1"
+            printf '.options %s\n.control\nset numdgt=16\n' "$5"
+            printf 'tran %s %s 0 %s\nwrdata %s %s\n.endc\n.end\n' "$TSTEP" "$3" "$TMAX" "$WORK/raw_$2_$TMAX.dat" "$4"
+        } >"$WORK/$2_$TMAX.cir"
+        run_deck "$WORK/$2_$TMAX.cir" "$WORK/$2_$TMAX.log" "$WORK/raw_$2_$TMAX.dat"
+        sample "$FS" "$nsamp" "$nvec" <"$WORK/raw_$2_$TMAX.dat" >"$WORK/s_$2_$TMAX.txt" || exit 1
+    done
+    paste -d ' ' "$WORK/s_$2_10n.txt" "$WORK/s_$2_5n.txt" | awk -v name="$2" -v nvec="$nvec" -v vecs="$4" -v prog="$PROG" '
+        function abs(x) { return x < 0 ? -x : x }
+        {
+            for (k = 1; k <= nvec; k++) {
+                c = $(2 * k); l = $(2 * k + 1); c5 = $(2 * nvec + 1 + 2 * k)
+                if (abs(c - l) > dl[k]) dl[k] = abs(c - l)
+                if (abs(c - c5) > ds[k]) ds[k] = abs(c - c5)
+                if (abs(c) > pk[k]) pk[k] = abs(c)
+            }
+        }
+        END {
+            split(vecs, v, " ")
+            for (k = 1; k <= nvec; k++)
+                printf "%s: %s %s: peak %.6g; max |10 ns run - 5 ns run| %.3g; " \
+                       "max |cubic - line| %.3g\n", prog, name, v[k], pk[k], ds[k], dl[k]
+        }'
+    awk -v name="$2" -v nvec="$nvec" '{
+        printf "%s,%s", name, $1
+        for (k = 1; k <= nvec; k++) printf ",%s", $(2 * k)
+        printf "\n"
+    }' "$WORK/s_$2_10n.txt" >>"$WORK/all.csv" || exit 1
 }
