@@ -459,6 +459,20 @@ static void element(Parser *P, Line *l) {
             add_arg(&args, node_value(P));
         }
     }
+    if (kind == BK_K) { /* K NAME L1 L2 [L3...] k: the inductors' names, then the coefficient */
+        while (P->tok->kind == TK_IDENT && !at_keyval(P))
+            add_arg(&args, node_value(P));
+        if (at_eol(P) || at_keyval(P))
+            error_at(P->tok->pos, "coupling '%s' needs a coefficient after its inductors' names", l->name);
+        Token *kt = P->tok;
+        add_arg(&args, value(P));
+        set_args(l, &args);
+        if (!at_eol(P) && !at_keyval(P))
+            error_at(kt->pos, "coupling '%s' takes inductors' names, then one coefficient: '%.*s' is not an "
+                     "inductor's name", l->name, kt->len, kt->text);
+        keyvals(P, l);
+        return;
+    }
     if (P->file->spice && (kind == BK_V || kind == BK_I)) { /* DC 1 AC 1 SIN(...): elab reads them */
         while (!at_eol(P) && !at_keyval(P))
             add_arg(&args, value(P));

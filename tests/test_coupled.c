@@ -11,8 +11,9 @@
  *     v[n] + v[n-1] = (2/T) L (i[n] - i[n-1]) for the matrix L of self
  *     and mutual inductances M_ij = k_ij sqrt(L_i L_j), whatever elements
  *     realise it; held to 1e-11 of the largest voltage for a pair, a pair
- *     with k < 0, a perfectly coupled pair (k = 1, no leakage) and three
- *     windings whose couplings are products c_i c_j with mixed signs;
+ *     with k < 0, a perfectly coupled pair (k = 1, no leakage), three
+ *     windings whose couplings are products c_i c_j with mixed signs, and
+ *     three coupled by one K line (LTspice's form: every pair alike);
  *   - refsim, the extended-precision trapezoidal simulation of the same
  *     elaborated circuit with its own MNA stamp of the transformer, over a
  *     sine, noise and random steps at 48 and 192 kHz: a transformer into
@@ -81,16 +82,17 @@ typedef struct group {
     int n;                 /* windings */
     double L[3];           /* self inductances, H */
     double k[3][3];        /* couplings (upper triangle) */
-    const char *kfirst[3]; /* each K line's first inductor, in order 01 02 12 */
+    int oneline;           /* one K line for all (equal) couplings, LTspice's form */
 } group;
 
 static const group groups[] = {
-    {"pair", 2, {10e-3, 40e-3}, {{0, 0.9}}, {NULL}},
-    {"negative", 2, {1e-3, 2.5e-3}, {{0, -0.7}}, {NULL}},
-    {"perfect", 2, {4e-3, 1e-3}, {{0, 1}}, {NULL}},
+    {"pair", 2, {10e-3, 40e-3}, {{0, 0.9}}, 0},
+    {"negative", 2, {1e-3, 2.5e-3}, {{0, -0.7}}, 0},
+    {"perfect", 2, {4e-3, 1e-3}, {{0, 1}}, 0},
     /* c = 0.9, 0.8, 0.95 with signs +, -, +: k_01 = -0.72, k_02 = 0.855,
      * k_12 = -0.76 */
-    {"three", 3, {10e-3, 2.5e-3, 3e-3}, {{0, -0.72, 0.855}, {0, 0, -0.76}}, {NULL}},
+    {"three", 3, {10e-3, 2.5e-3, 3e-3}, {{0, -0.72, 0.855}, {0, 0, -0.76}}, 0},
+    {"oneline", 3, {2e-3, 1e-3, 4e-3}, {{0, 0.95, 0.95}, {0, 0, 0.95}}, 1},
 };
 
 /* Each winding w driven by current source Iw from ground into its first
@@ -102,7 +104,9 @@ static char *group_netlist(const group *g) {
         len += snprintf(text + len, sizeof text - (size_t)len, ".input i%d\nI%d 0 a%d i%d\nL%d a%d 0 %.17g\n", w, w,
                         w, w, w, w, g->L[w]);
     int nk = 0;
-    for (int a = 0; a < g->n; a++)
+    if (g->oneline)
+        len += snprintf(text + len, sizeof text - (size_t)len, "K0 L0 L1 L2 %.17g\n", g->k[0][1]);
+    for (int a = 0; a < g->n && !g->oneline; a++)
         for (int b = a + 1; b < g->n; b++)
             len += snprintf(text + len, sizeof text - (size_t)len, "K%d L%d L%d %.17g\n", nk++, a, b, g->k[a][b]);
     for (int w = 0; w < g->n; w++)
@@ -335,7 +339,12 @@ static void test_diagnostics(void **state) {
                  "t.wdn:7:4: error: coupled inductor 'L1' must have a constant inductance, not one that depends on "
                  "a param");
     expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 1m 0.9\n",
-                 "t.wdn:6:7: error: coupling 'K1' needs the names of two inductors before its coefficient");
+                 "t.wdn:6:7: error: coupling 'K1' takes inductors' names, then one coefficient: '1m' is not an "
+                 "inductor's name");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 0.9\n",
+                 "t.wdn:6:4: error: coupling 'K1' needs the names of two inductors before its coefficient");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2\n",
+                 "t.wdn:6:9: error: coupling 'K1' needs a coefficient after its inductors' names");
     expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 0.9\nK2 L2 L1 0.8\n",
                  "t.wdn:7:1: error: coupling 'K2' couples 'L2' and 'L1' again (after 'K1')");
     expect_error(SRC "L1 x 0 1m\nL2 y 0 1m\nL3 z 0 1m\nR2 y 0 1k\nR3 z 0 1k\nK1 L1 L2 0.9\nK2 L1 L3 0.9\n",
