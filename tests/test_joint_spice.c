@@ -1,6 +1,6 @@
 /*
- * test_joint_spice.c - the decks whose diodes are solved jointly or sit
- * in a root with an op-amp, against ngspice's transient.
+ * test_joint_spice.c - the example decks in netlists/ against
+ * ngspice's transient.
  *
  * tests/ref/joint_tran.csv (tests/ref/joint_ngspice.sh makes it) holds
  * ngspice's transient of netlists/clipper_asym.cir (v(out), and v(mid)
@@ -9,7 +9,9 @@
  * netlists/fuzzface.cir (v(out), and v(c2) at Q2's collector) and of
  * netlists/bigmuff.cir (v(out), and v(c) at its collector) and of
  * netlists/bridge.cir (v(o), the ripple taken off the rail, and v(p), the
- * rail) over 20 ms from each deck's DC operating point (rest for the
+ * rail) and of netlists/clipper_sym.cir (v(out); its diode pair has one
+ * closed form, and ngspice runs its model with IS and N only, the keys the
+ * voice takes) over 20 ms from each deck's DC operating point (rest for the
  * clippers and the bridge, whose reservoir then charges), sampled
  * at t = m/48000 s, with a 10 ns maximum step (its own error, which the
  * script prints, is below 4e-10 V for the clipper, 1.2e-8 V for the Tube
@@ -47,6 +49,7 @@
  *     bigmuff       v(c)     -66.4 dB    -90.5 dB  16.0
  *     bridge        v(o)    -103.9 dB   -128.0 dB  16.0
  *     bridge        v(p)    -109.3 dB   -133.4 dB  16.0
+ *     clipper_sym   v(out)   -74.4 dB    -99.0 dB  17.1
  *
  * (The Fuzz Face's error falls 9.2, then 3.7 times from 48 to 96 to 192
  * kHz; past that ngspice's own error, about -95 dB, is as large.  Its
@@ -103,6 +106,7 @@ static const deck decks[] = {
     {"fuzzface", "v(out) v(c2)", 2, 0.02, {-53, -58}, {-83.5, -90}, {1, 4}},
     {"bigmuff", "v(out) v(c)", 2, 0.02, {-57.5, -63.5}, {-81.5, -87.5}, {1, 4}},
     {"bridge", "v(o) v(p)", 2, 0.02, {-101, -106.5}, {-125, -130.5}, {1, 4}},
+    {"clipper_sym", "v(out)", 1, 0.02, {-71.5}, {-96}, {1, 4}},
 };
 #define NDECKS ((int)(sizeof decks / sizeof decks[0]))
 
