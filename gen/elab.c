@@ -60,6 +60,7 @@ typedef struct Elab {
     bool elem_ix_stale; /* while mutators take elements out: search elems */
     Map dropped_ix; /* resistors to nodes nothing else meets, taken out -> 1 */
     Map paired_ix;  /* a diode merged into the one it faces -> index of that one's name in paired */
+    Map perfect_ix; /* a perfectly coupled winding, taken out -> 1 */
     Vec paired;     /* const char*: the diodes that took in their facing twins */
     Map fold_ix[NS_N]; /* each namespace's names in lower case -> index in fold_name */
     Vec fold_name[NS_N]; /* the first spelling of each */
@@ -1133,10 +1134,10 @@ static int fresh_node(Elab *E, const char *base) {
  * its windings' (every pair needs its K line).  Then s_i = sigma_i c_i
  * sqrt(L_i), D_i = (1 - c_i^2) L_i, and the group is realised as:
  *   - the magnetising inductance s_1^2 = c_1^2 L_1 across the first
- *     winding behind its leakage (named after it, L1.m, or L1 itself
- *     when there is no leakage);
+ *     winding behind its leakage (named after it, L1.m);
  *   - winding i's leakage D_i in series from its first node (taking the
- *     inductor's name), none when D_i is 0 (|k| = 1);
+ *     inductor's name), none when D_i is 0 (|k| = 1): then no element
+ *     carries the winding's current alone, and i() of it is refused;
  *   - an ideal transformer (E_XF NAME.Li, its probe NAME.Li.in across the
  *     magnetising inductance) of ratio s_i / s_1 behind it.
  * The inductances are constants (the transformer's ratio is). */
@@ -1257,18 +1258,16 @@ static void couple(Elab *E) {
             if (leak) { /* the inductor becomes its leakage, up to x */
                 e->n[1] = x;
                 e->val = expr_num(D, e->pos);
-            } else if (i > 0) {
+            } else { /* no element carries its current alone: it goes */
                 gone[w[i]] = true;
+                map_put(&E->perfect_ix, e->name, 1);
             }
             if (i == 0) { /* the magnetising inductance, x to b1 */
-                Elem *m = e;
-                if (leak) {
-                    m = lower_elem(&top, first->line, E_L, format("#m%d", j0), x, b1); /* renamed */
-                    m->name = format("%s.m", e->name);
-                    m->user_kind = BK_L;
-                    m->pos = e->pos;
-                    m->ic = e->ic;
-                }
+                Elem *m = lower_elem(&top, first->line, E_L, format("#m%d", j0), x, b1); /* renamed */
+                m->name = format("%s.m", e->name);
+                m->user_kind = BK_L;
+                m->pos = e->pos;
+                m->ic = leak ? e->ic : NULL;
                 /* its current: the first winding's and what the others
                  * draw through their transformers */
                 for (int j = 1; j < n; j++) {
@@ -1463,6 +1462,9 @@ static void dir_output(Elab *E, Line *l) {
             error_at(r->argpos[0], "diode '%s' faces '%s' and the two are solved as one antiparallel pair: probe "
                      "%c(%s), the pair's current", r->arg[0], (const char *)E->paired.data[twin], r->fn,
                      (const char *)E->paired.data[twin]);
+        if (map_get(&E->perfect_ix, r->arg[0]) >= 0)
+            error_at(r->argpos[0], "'%s' is coupled perfectly (|k| = 1): no element carries its current alone, "
+                     "so %c(%s) cannot be read", r->arg[0], r->fn, r->arg[0]);
         p->elem = map_get(&E->dropped_ix, r->arg[0]) >= 0 ? -1 : probe_elem(E, r);
     }
     case_check(E, NS_OUT, p->name, l->namepos);

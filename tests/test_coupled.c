@@ -358,6 +358,12 @@ static void test_diagnostics(void **state) {
                      "K3 L2 L3 0.5\n",
                  "t.wdn:8:1: error: the couplings of 'L1' with the other windings would need it coupled more than "
                  "perfectly (1.27279): they are not those of one core");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 4m\nR2 y 0 1k\nK1 L1 L2 1\n.output i i(L2)\n",
+                 "t.wdn:7:13: error: 'L2' is coupled perfectly (|k| = 1): no element carries its current alone, so "
+                 "i(L2) cannot be read");
+    expect_error(SRC "L1 x 0 1m\nL2 y 0 4m\nR2 y 0 1k\nK1 L1 L2 -1\n.output i i(L1)\n",
+                 "t.wdn:7:13: error: 'L1' is coupled perfectly (|k| = 1): no element carries its current alone, so "
+                 "i(L1) cannot be read");
     expect_error(SRC "L1 x 0 1m IC=1m\nL2 y 0 1m\nR2 y 0 1k\nK1 L1 L2 1\n",
                  "t.wdn:3:1: error: 'L1' is coupled perfectly (|k| = 1): no element carries its current alone, so "
                  "it cannot take an initial current");
