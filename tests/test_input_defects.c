@@ -130,6 +130,23 @@ static void test_dump_waveguide(void **state) {
     assert_null(strstr(out, "(null)"));
     assert_non_null(strstr(out, "\n  S "));
     free(out);
+
+    /* controlled sources and their probes, a transistor's sources, a
+     * transformer's winding */
+    static const struct {
+        const char *args, *want[2];
+    } decks[] = {
+        {"netlists/tubescreamer.cir -delab --check", {"\n  E e1 out 0 1e+06\n", "\n  P e1.in in n\n"}},
+        {"netlists/fuzzface.cir -delab --check", {"\n  F q1.f c1 b1 0.997506\n", "\n  NL q1.be b1 0\n"}},
+        {"tests/nets/xfmr_neg.cir -delab --check", {"\n  XF k1.l1 l1.x 0 -2\n", "\n  L l2.m l2.x 0 0.00225\n"}},
+    };
+    for (size_t d = 0; d < sizeof decks / sizeof decks[0]; d++) {
+        assert_int_equal(run_wdc(decks[d].args, &out), 0);
+        for (int k = 0; k < 2; k++)
+            if (!strstr(out, decks[d].want[k]))
+                fail_msg("%s: no line '%s' in the dump:\n%s", decks[d].args, decks[d].want[k], out);
+        free(out);
+    }
 }
 
 /* ---- 2. files that are not netlists ---- */
