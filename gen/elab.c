@@ -660,13 +660,12 @@ const Value *lower_arg(const Line *l) {
     return nn < l->nargs ? &l->args[nn] : NULL;
 }
 
-Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int n1) {
-    Elab *E = L->E;
-    Scope *S = L->S;
-    const char *name = format("%s%s%s", S->prefix, l->name, suffix);
+/* Adds element `name` (whole, prefix and all) of kind k from n0 to n1 for
+ * line l, in scope S (NULL: elaboration adds it itself). */
+static Elem *add_elem(Elab *E, Scope *S, Line *l, ElemKind k, const char *name, int n0, int n1) {
     Elem *prev = find_elem(E, name);
     if (prev) {
-        if (S->def)
+        if (S && S->def)
             error_at(S->usepos, "duplicate element name '%s' (in this instance of block '%s')", name,
                      S->def->name);
         SrcPos p = l->namepos;
@@ -685,6 +684,10 @@ Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int 
     if (!E->elem_ix_stale)
         map_put(&E->elem_ix, name, E->elems.len - 1);
     return e;
+}
+
+Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int n1) {
+    return add_elem(L->E, L->S, l, k, format("%s%s%s", L->S->prefix, l->name, suffix), n0, n1);
 }
 
 int lower_nelems(Lower *L) { return L->E->elems.len; }
@@ -1084,8 +1087,7 @@ static void mutate(Elab *E) {
         nl->mutated = m->type;
         /* the resistor leaves the network; the reactance takes the mutator's name */
         E->elems.data[found] = E->elems.data[--E->elems.len];
-        Elem *e = lower_elem(&(Lower){E, &(Scope){.prefix = ""}}, m->line, E_NL, "", m->n[0], m->n[1]);
-        e->name = m->name;
+        Elem *e = add_elem(E, NULL, m->line, E_NL, m->name, m->n[0], m->n[1]);
         e->nl = nl;
         e->user_kind = BK_MUTATOR;
     }
@@ -1177,7 +1179,6 @@ static void couple(Elab *E) {
     }
     bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
     bool *done = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
-    Lower top = {E, &(Scope){.prefix = ""}};
     for (int j0 = 0; j0 < nk; j0++) {
         int root = at[2 * j0];
         while (grp[root] != root)
@@ -1263,8 +1264,7 @@ static void couple(Elab *E) {
                 map_put(&E->perfect_ix, e->name, 1);
             }
             if (i == 0) { /* the magnetising inductance, x to b1 */
-                Elem *m = lower_elem(&top, first->line, E_L, format("#m%d", j0), x, b1); /* renamed */
-                m->name = format("%s.m", e->name);
+                Elem *m = add_elem(E, NULL, first->line, E_L, format("%s.m", e->name), x, b1);
                 m->user_kind = BK_L;
                 m->pos = e->pos;
                 m->ic = leak ? e->ic : NULL;
@@ -1280,11 +1280,9 @@ static void couple(Elab *E) {
                 continue;
             }
             Coupling *k = by[0][i];
-            Elem *t = lower_elem(&top, k->line, E_XF, format("#%d.%d", j0, i), x, b);
-            t->name = format("%s.%s", k->name, e->name);
+            Elem *t = add_elem(E, NULL, k->line, E_XF, format("%s.%s", k->name, e->name), x, b);
             t->val = expr_num(sg[i] * cc[i] * sqrt(L[i]) / (cc[0] * sqrt(L[0])), k->kpos);
-            Elem *p = lower_elem(&top, k->line, E_P, format("#%d.%d.in", j0, i), x1, b1);
-            p->name = format("%s.in", t->name);
+            add_elem(E, NULL, k->line, E_P, format("%s.in", t->name), x1, b1);
         }
     }
     Vec elems = {0};

@@ -194,12 +194,8 @@ static void test_against_refsim(void **state) {
                   "capped");
     for (int t = 0; t < NNETS; t++) {
         const char *path = net_path(&nets[t]);
-        Circuit *c = wdc_load(path);
-        assert_non_null(c);
-        assert_true(refsim_can_simulate(c));
         tl_voice vd, vf;
-        if (tl_voice_build(path, 0, &vd) != 0 || tl_voice_build(path, 1, &vf) != 0)
-            fail_msg("%s: the voice could not be built", nets[t].name);
+        Circuit *c = tl_load_both(path, nets[t].name, &vd, &vf);
         static const double rates[] = {48000.0, 192000.0};
         for (int ri = 0; ri < 2; ri++)
             for (int d = 0; d < NDRIVES; d++) {

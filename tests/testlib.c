@@ -839,6 +839,17 @@ void tl_drive(tl_drive_kind kind, double amp, int hold, double fs, long n, uint6
     }
 }
 
+Circuit *tl_load_both(const char *path, const char *name, tl_voice *vd, tl_voice *vf) {
+    Circuit *c = wdc_load(path);
+    if (!c)
+        fail_msg("%s: %s does not load", name, path);
+    if (!refsim_can_simulate(c))
+        fail_msg("%s: refsim cannot simulate it", name);
+    if (tl_voice_build(path, 0, vd) != 0 || tl_voice_build(path, 1, vf) != 0)
+        fail_msg("%s: the voice could not be built", name);
+    return c;
+}
+
 /* ---- transients of SPICE decks against ngspice ---- */
 
 typedef struct tran_ctx {

@@ -46,6 +46,10 @@ int tl_voice_build_args(const char *netlist, int single, const char *const *extr
  * with its diagnostics captured: the circuit, or NULL on an error; the
  * first line printed goes to *report (in the arena). */
 Circuit *tl_netlist_load(const char *text, const char **report);
+/* Loads the netlist at path (which refsim must simulate) and builds its
+ * voice in double (*vd) and in float (*vf): the circuit, after a cmocka
+ * failure naming `name` if any step fails. */
+Circuit *tl_load_both(const char *path, const char *name, tl_voice *vd, tl_voice *vf);
 /* Unloads the voice and removes its directory.  Directories of voices
  * never freed (a test that failed half-way) are removed at exit. */
 void tl_voice_free(tl_voice *v);

@@ -36,21 +36,10 @@ set -u
 
 cd "$(dirname "$0")/../.." || exit 1
 . tests/ref/ngspice_lib.sh
-need_ngspice coupled_ngspice
 OUT=${1:-tests/ref/coupled_tran.csv}
-WORK=$(mktemp -d) || exit 1
-trap 'rm -rf "$WORK"' EXIT INT TERM
-FS=48000
-TSTEP=2.0833333333333333e-05
-
-PROG=coupled_ngspice
-: >"$WORK/all.csv" || exit 1
+tran_begin coupled_ngspice
 run() { tran_ref "tests/nets/$1.cir" "$@"; }
 
 run xfmr_ct 5m "v(b) v(c) i(l1)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15"
 run xfmr_neg 5m "v(b) i(l2)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15"
-{
-    echo "deck,t,v..."
-    cat "$WORK/all.csv"
-} >"$OUT" || exit 1
-echo "coupled_ngspice: wrote $OUT ($(wc -l <"$WORK/all.csv") rows, ngspice $(ngspice -v 2>/dev/null | sed -n 's/.*ngspice-\([0-9.]*\).*/\1/p' | head -1))"
+tran_end "$OUT"

@@ -53,15 +53,8 @@ set -u
 
 cd "$(dirname "$0")/../.." || exit 1
 . tests/ref/ngspice_lib.sh
-need_ngspice joint_ngspice
 OUT=${1:-tests/ref/joint_tran.csv}
-WORK=$(mktemp -d) || exit 1
-trap 'rm -rf "$WORK"' EXIT INT TERM
-FS=48000
-TSTEP=2.0833333333333333e-05
-
-PROG=joint_ngspice
-: >"$WORK/all.csv" || exit 1
+tran_begin joint_ngspice
 run() { tran_ref "netlists/$1.cir" "$@"; }
 
 run clipper_asym 20m "v(out) v(mid)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
@@ -72,8 +65,4 @@ run bridge 20m "v(o) v(p)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
 sed 's/^\(\.model 1N4148 D(IS=2.52n N=1.752\).*/\1)/' netlists/clipper_sym.cir >"$WORK/clipper_sym.cir" || exit 1
 grep -q '^\.model 1N4148 D(IS=2.52n N=1.752)$' "$WORK/clipper_sym.cir" || { echo "joint_ngspice: clipper_sym's model?" >&2; exit 1; }
 tran_ref "$WORK/clipper_sym.cir" clipper_sym 20m "v(out)" "RELTOL=1e-6 VNTOL=1e-9 ABSTOL=1e-15 GMIN=1e-15"
-{
-    echo "deck,t,v..."
-    cat "$WORK/all.csv"
-} >"$OUT" || exit 1
-echo "joint_ngspice: wrote $OUT ($(wc -l <"$WORK/all.csv") rows, ngspice $(ngspice -v 2>/dev/null | sed -n 's/.*ngspice-\([0-9.]*\).*/\1/p' | head -1))"
+tran_end "$OUT"

@@ -15,6 +15,10 @@
 #                     straight line between the two nearest points (their
 #                     difference is about the coarser one's error, so a
 #                     bound on the cubic's)
+# tran_begin PROG  sets up the transient references of script PROG: ngspice
+#                     installed if missing, WORK (removed at exit), FS
+#                     (48 kHz), TSTEP (1/FS) and an empty $WORK/all.csv
+# tran_end OUT     writes the header and the rows tran_ref gathered to OUT
 # tran_ref DECK NAME TSTOP "VECTORS" "OPTIONS"
 #                     runs the deck file DECK as written but for its IC=
 #                     values and its .tran, .print and .end lines, from its
@@ -26,8 +30,7 @@
 #                     digits) and prints, per vector, the largest
 #                     difference between the runs and between the cubic and
 #                     the straight line (bounds on the reference's own
-#                     error).  Needs WORK, FS and TSTEP (1/FS) set, and
-#                     PROG (the script's name, for its messages).
+#                     error), after tran_begin.
 
 need_ngspice() {
     command -v ngspice >/dev/null 2>&1 && return 0
@@ -116,4 +119,22 @@ tran_ref() {
         for (k = 1; k <= nvec; k++) printf ",%s", $(2 * k)
         printf "\n"
     }' "$WORK/s_$2_10n.txt" >>"$WORK/all.csv" || exit 1
+}
+
+tran_begin() {
+    PROG=$1
+    need_ngspice "$PROG"
+    WORK=$(mktemp -d) || exit 1
+    trap 'rm -rf "$WORK"' EXIT INT TERM
+    FS=48000
+    TSTEP=2.0833333333333333e-05
+    : >"$WORK/all.csv" || exit 1
+}
+
+tran_end() {
+    {
+        echo "deck,t,v..."
+        cat "$WORK/all.csv"
+    } >"$1" || exit 1
+    echo "$PROG: wrote $1 ($(wc -l <"$WORK/all.csv") rows, ngspice $(ngspice -v 2>/dev/null | sed -n 's/.*ngspice-\([0-9.]*\).*/\1/p' | head -1))"
 }
