@@ -286,8 +286,18 @@ static bool fast_diode(Ctx *x, int k) {
     return nl->kind == NL_DIODE && !nl->mutated && solver_of(x, k) == SOLVER_FAST;
 }
 
-/* points of diode_fast's omega table: OM_N of templates/nl_fast.c.tmpl */
-#define OMEGA_TABLE 560
+/* Nonlinear edge k is a diode (or pair) solved alone by a kernel that
+ * returns its voltage t_vK: the root's sums take 2 t_vK - t_anK for its
+ * wave t_bnK, with the t_anK term first, so that they wait for the solve
+ * at one last term. */
+static bool returns_v(Ctx *x, int k) {
+    const NlSpec *nl = nl_elem(x, k)->nl;
+    Solver s = solver_of(x, k);
+    return nl->kind == NL_DIODE && !nl->mutated && s != SOLVER_PWL && s != SOLVER_JOINT;
+}
+
+/* doubles of diode_fast's tables: OM_SIZE of templates/nl_fast.c.tmpl */
+#define OMEGA_TABLE 6144
 
 /* The fixed port resistance of nonlinear edge k of joint root rb, as the
  * voice stores it. */
@@ -768,7 +778,8 @@ static void emit_nl_solve(Ctx *x, int k) {
     int it = x->opt->maxit;
     bool gates = nl->kind == NL_CONTACT && !nl->mutated && contact_gates(x, k);
     Buf o = {0};
-    emit(&o, "        real t_bn%d; /* %s (%s:%d:%d) */\n", k, e->name, e->pos.file->path, e->pos.line, e->pos.col);
+    emit(&o, "        %s%d; /* %s (%s:%d:%d) */\n", returns_v(x, k) ? "double t_v" : "real t_bn", k, e->name,
+         e->pos.file->path, e->pos.line, e->pos.col);
     if (gates)
         emit(&o, "        int t_open%d;\n", k);
     emit(&o, "        {\n");
@@ -805,23 +816,25 @@ static void emit_nl_solve(Ctx *x, int k) {
         emit(&o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
         break;
     case SOLVER_FAST:
-        emit(&o, "            const double t_v = diode_fast(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, c_nl%d_2, c_om, %s, %d);\n",
-             k, k, k, k, nl->pair, k, tol, it);
-        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n", k, k, an);
+        emit(&o, "            t_v%d = diode_fast(", k);
+        emit(&o, "t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, c_nl%d_2, c_om, %s, %d);\n",
+             k, k, k, k, nl->pair, k, x->opt->fast_tol > 0 ? format("%.17g", x->opt->fast_tol) : "FAST_BOUND", it);
         break;
     case SOLVER_OMEGA:
-        emit(&o, "            const double t_v = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k,
+        emit(&o, "            t_v%d = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
              k, nl->pair, tol, it);
-        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n", k, k, an);
         break;
     default:
-        emit(&o, "            const double t_v = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n",
+        emit(&o, "            t_v%d = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n", k,
              k, k, k, k, nl->pair, k, tol, it);
-        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n", k, k, an);
         break;
     }
+    if (returns_v(x, k))
+        emit(&o, "            s_nv%d = (real)t_v%d;\n", k, k);
     emit(&o, "        }\n");
     put(x, NULL, "%s", str(&o));
+    if (returns_v(x, k))
+        put(x, format("t_bn%d", k), "        const real t_bn%d = (real)(2 * t_v%d - %s);\n", k, k, an);
 }
 
 /* Entries of root r's matrix that vanish for any port resistances (an
@@ -992,6 +1005,24 @@ static void mterm(Ctx *x, Buf *t, int b, int k, int j, const char *in) {
         emit(t, "%s%s * %s", plus, lit(x, x->mval[b][k * ne + j]), in);
 }
 
+/* For M[k][j] t_bnG, G a nonlinear edge that returns_v: the term
+ * -M t_anG (`late` false) or the term 2 M t_vG (`late`) of a sum t. */
+static void vterm(Ctx *x, Buf *t, int b, int k, int j, int g, bool late) {
+    const int ne = x->w->roots[b].nedge;
+    const char *tv = x->single ? format("(real)t_v%d", g) : format("t_v%d", g);
+    if (x->mnum[b] && x->mnum[b][k * ne + j]) {
+        double m = x->mval[b][k * ne + j] * (late ? 2 : -1);
+        const char *in = late ? tv : format("t_an%d", g);
+        if (m == 1 || m == -1)
+            emit(t, "%s%s", m < 0 ? (t->len ? " - " : "-") : t->len ? " + " : "", in);
+        else
+            emit(t, "%s%s * %s", t->len ? " + " : "", lit(x, m), in);
+    } else if (late)
+        emit(t, "%s2 * m%d_%d_%d * %s", t->len ? " + " : "", b, k, j, tv);
+    else
+        emit(t, "%sm%d_%d_%d * t_an%d", t->len ? " - " : "-", b, k, j, g);
+}
+
 /* Entry M[k][j] of root b as C text: a number, or its local. */
 static const char *mcoef(Ctx *x, int b, int k, int j) {
     const int ne = x->w->roots[b].nedge;
@@ -1150,12 +1181,20 @@ static void emit_root(Ctx *x, int b) {
     for (int k = 0; k < r->nedge; k++) {
         if (r->edge[k].kind == EDGE_NL)
             continue;
+        /* the nonlinear edges' waves last: the sum waits for their solve
+         * only at its last terms */
         Buf t = {0};
-        for (int j = 0; j < r->nedge; j++) {
-            const char *in = root_in(x, b, j);
-            if (!is_zero(in) && !x->mzero[b][k * r->nedge + j])
-                mterm(x, &t, b, k, j, in);
-        }
+        for (int nl = 0; nl < 3; nl++)
+            for (int j = 0; j < r->nedge; j++) {
+                const char *in = root_in(x, b, j);
+                if ((r->edge[j].kind == EDGE_NL) != (nl > 0) || is_zero(in) || x->mzero[b][k * r->nedge + j])
+                    continue;
+                int g = r->edge[j].kind == EDGE_NL ? x->nl_first[b] + j - r->nport : -1;
+                if (g < 0 || !returns_v(x, g))
+                    nl < 2 ? mterm(x, &t, b, k, j, in) : (void)0;
+                else
+                    vterm(x, &t, b, k, j, g, nl == 2);
+            }
         const char *v = t.len ? str(&t) : lit(x, 0);
         if (x->idle[b]) /* the open contact: the port sees an open end */
             v = format("t_open%d ? %s : %s", x->nl_first[b], root_in(x, b, k), v);
@@ -2337,7 +2376,8 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "c_Rn", x->nnl, "nonlinear edges: adapted port resistance");
     field(&b, r, "c_nl", 4 * x->nnl,
           "nonlinear edges: Is, n Vt, ln(R Is / n Vt) (diode) or k, alpha, lambda, gap (contact)");
-    field(&b, "double", "c_om", any_fast(x) ? 2 * OMEGA_TABLE : 0, "diode_fast: Wright omega and its slope on unit steps");
+    field(&b, "double", "c_om", any_fast(x) ? OMEGA_TABLE : 0,
+          "diode_fast: Wright omega, 1 / (omega (1 + omega)) and their slopes");
     field(&b, r, "s_nX", x->nnl, "contacts: x(n0) - x(n1), m");
     field(&b, r, "s_nv", x->nnl, "nonlinear edges: last voltage (velocity) across");
     field(&b, r, "s_nf", x->nnl,

@@ -721,6 +721,7 @@ typedef struct EmitOpts {
     Solver solver;      /* for nonlinear elements that name none */
     int table;          /* points of a diode's piecewise-linear table */
     double tol;         /* Newton: relative step tolerance */
+    double fast_tol;    /* solver fast: the same, 0 for its table's bound (no Halley steps) */
     int maxit;          /* Newton: iteration cap */
     const char *outdir;
     const char *tmpldir; /* templates/ */

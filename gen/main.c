@@ -30,7 +30,7 @@ typedef struct Opts {
     bool check, single, energy, no_skip, batch, dump_elab, dump_wdf, tableau, has_outdir;
     Solver solver;
     int table, maxit;
-    double tol;
+    double tol, fast_tol; /* fast_tol: 0 unless --tol was given */
 } Opts;
 
 static void usage(FILE *f) {
@@ -43,6 +43,8 @@ static void usage(FILE *f) {
         "       wdc FILE.wdn --dot OUT.dot\n"
         "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n"
         "nonlinear elements: [--solver fast|newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
+        "--tol T: a Newton solve's relative tolerance (default 1e-12); the fast solver's error is\n"
+        "          below 5e-8 (|v| + nVt) by its table, and only a T below that adds Halley steps\n"
         "SPEC: impulse[:A] | step[:A] | sine:FREQ[:A] | noise[:A] | FILE.wav (one per .input, in order)\n"
         "--energy: the voice counts the work its sources do, sample by sample (its work()); without\n"
         "          it process does no such accounting and work() returns NaN (energy() is always there)\n"
@@ -129,7 +131,7 @@ static Opts parse_args(int argc, char **argv) {
                 usage_error("--maxit takes a whole number from 1 to 1000, not '%s'", argv[i]);
             o.maxit = (int)v;
         } else if (!strcmp(a, "--tol")) {
-            o.tol = number_arg(a, TAKE());
+            o.tol = o.fast_tol = number_arg(a, TAKE());
         } else if (!strcmp(a, "--precision")) {
             const char *p = TAKE();
             if (strcmp(p, "float") && strcmp(p, "double"))
@@ -730,7 +732,7 @@ int main(int argc, char **argv) {
     if (o.check || ((o.dot || o.tableau) && !o.render))
         return 0;
     EmitOpts eo = {.single = o.single, .energy = o.energy, .no_skip = o.no_skip, .batch = o.batch, .outdir = o.outdir, .solver = o.solver,
-                   .table = o.table, .tol = o.tol, .maxit = o.maxit};
+                   .table = o.table, .tol = o.tol, .fast_tol = o.fast_tol, .maxit = o.maxit};
     if (o.lv2)
         return emit(w, &eo, o.lv2);
     /* the voice is emitted in a folder of this run's own; -o DIR (or no

@@ -485,7 +485,7 @@ static void check_emitted_text(Ctx *x) {
 /* The functions a float voice runs every sample: process and the
  * kernels it calls. */
 static const char *const per_sample[] = {
-    "voice_process", "flush", "pwl_map", "diode_fast", "omega_read", "diode_newton", "diode_omega", "diode_estimate", "wright_omega",
+    "voice_process", "flush", "pwl_map", "diode_fast", "fast_poly", "fast_halley", "diode_newton", "diode_omega", "diode_estimate", "wright_omega",
     "diode_i", "el_solve", "el_force", "el_F", "el_mean", "cap_solve", "cap_h", "mem_g", NULL,
 };
 

@@ -97,6 +97,9 @@
 
 #include "testlib.h"
 
+#include "../templates/nl_wright.c.tmpl"
+#include "../templates/nl_fast.c.tmpl"
+
 #define FS 48000.0
 #define SECONDS 0.2
 #define TOL_SOLVER 1e-9
@@ -282,13 +285,14 @@ static void make_drive(drive_kind d, double fs, long n, double *x) {
 
 typedef struct solver_case {
     const char *label;
-    const char *args[6];
-    int table; /* pwl: table points; 0: an iterative solver */
+    const char *args[8];
+    int table; /* pwl: table points; -1: fast's table bound; 0: an iterative solver */
 } solver_case;
 
 /* --energy: the passivity checks read work() */
 static const solver_case solvers[] = {
-    {"fast", {"--solver", "fast", "--energy", NULL}, 0},
+    {"fast", {"--solver", "fast", "--energy", NULL}, -1},
+    {"fast tol", {"--solver", "fast", "--tol", "1e-12", "--energy", NULL}, 0},
     {"newton", {"--solver", "newton", "--energy", NULL}, 0},
     {"omega", {"--solver", "omega", "--energy", NULL}, 0},
     {"pwl 256", {"--solver", "pwl", "--table", "256", "--energy", NULL}, 256},
@@ -376,6 +380,21 @@ static void pwl_bounds(const diode_info *d, const clipper_net *k, double fs, int
     *bi = 2.0 * delta * (ipeak + 2.0 * d->Is) + 2.0 * Gc * K * delta * d->nVt;
 }
 
+/* The same for the fast solver's table, whose local error is in v itself,
+ * l <= FAST_BOUND (|v| + n Vt): carried as above, |dv| <= (1 + 2 gc K) l;
+ * the current, (A - v) / Rp with A off by Rp |dh|, by 2 Gc K l + |dv| / Rp. */
+static void fast_bounds(const diode_info *d, const clipper_net *k, double fs, double vlo, double vhi, double *bv,
+                        double *bi) {
+    double Gc = 2.0 * k->C * fs, Gr = 1.0 / k->R, Rp = 1.0 / (Gc + Gr);
+    double gc = Gc * Rp;
+    double g = fmax(diode_slope(d, vlo), diode_slope(d, vhi));
+    double Vmin = 1.0 / (1.0 + Rp * g);
+    double K = 1.0 / fmin(2.0 - 2.0 * gc, 2.0 * gc * Vmin);
+    double l = FAST_BOUND * (fmax(fabs(vlo), fabs(vhi)) + d->nVt);
+    *bv = (1.0 + 2.0 * gc * K) * l;
+    *bi = 2.0 * Gc * K * l + *bv / Rp;
+}
+
 /* A copy of the netlist with any solver= key dropped, so that the command
  * line's --solver applies. */
 static void solver_free_variant(const char *path, char *out, size_t cap) {
@@ -443,8 +462,11 @@ static void diode_solvers(const char *path) {
                     vlo = fmin(vlo, fmin(out[vout][n], ref[d][vout][n]));
                     vhi = fmax(vhi, fmax(out[vout][n], ref[d][vout][n]));
                 }
-                pwl_bounds(&di, &net, FS, solvers[s].table, vlo, vhi,
-                           max_abs(ref[d][iout], N), &bound_v, &bound_i);
+                if (solvers[s].table < 0)
+                    fast_bounds(&di, &net, FS, vlo, vhi, &bound_v, &bound_i);
+                else
+                    pwl_bounds(&di, &net, FS, solvers[s].table, vlo, vhi,
+                               max_abs(ref[d][iout], N), &bound_v, &bound_i);
                 ok = dv <= bound_v && dI <= bound_i;
             } else {
                 ok = ev < TOL_SOLVER && ei < TOL_SOLVER;
@@ -488,13 +510,73 @@ static void test_diode_single(void **state) {
     diode_solvers("netlists/diode_single.wdn");
 }
 
-/* ---- 1b. the default solver across its range ---- */
+/* ---- 1b. the fast solver across its range ---- */
 
-/* diode_fast (templates/nl_fast.c.tmpl) reads Wright's omega from a table
- * over y = ln c + |a| / nVt + c in [-32, 527], c = Rp Is / nVt with Rp the
- * port resistance the network presents, and uses the asymptote beyond;
- * for a pair its predictor leaves out the diode that blocks, which is off
- * by up to c.  Single diodes and pairs whose c runs from 1e-11 to about
+/* diode_fast (templates/nl_fast.c.tmpl), sample by sample: c = R Is / nVt
+ * log-uniform in [1e-14, 10], nVt in [0.02, 0.1] V, incident waves a of
+ * either sign with |a| / nVt log-uniform in [1e-6, 2000] (past the table
+ * for every c), one diode and pairs.  The exact root comes from
+ * bracketed Newton in long double.  With the table alone (tol
+ * FAST_BOUND) every v must lie within FAST_BOUND (|v| + nVt) of it; with
+ * tol 1e-12 (Halley steps), within 1e-12 (|v| + nVt) and 8 ulp of v. */
+static long double exact_x(long double al, long double c, int pair) {
+    if (pair && al < 0)
+        return -exact_x(-al, c, pair);
+    /* x >= 0 solves c e^x <= al + c, so x <= ln(1 + al / c) */
+    long double lo = al < 0 ? al : 0, hi = al > 0 ? fminl(al, log1pl(al / c)) : 0, x = 0.5L * (lo + hi);
+    for (int it = 0; it < 600; it++) {
+        long double E = expl(x), f = x + c * (pair ? E - 1 / E : E - 1) - al, f1 = 1 + c * (pair ? E + 1 / E : E);
+        if (f > 0)
+            hi = x;
+        else
+            lo = x;
+        long double xn = x - f / f1;
+        if (!(xn > lo && xn < hi))
+            xn = 0.5L * (lo + hi);
+        if (fabsl(xn - x) <= 1e-19L * (fabsl(x) + 1) || hi - lo <= 1e-19L * (fabsl(x) + 1))
+            return xn;
+        x = xn;
+    }
+    return x;
+}
+
+static double unit_draw(uint64_t *r) {
+    *r ^= *r << 13, *r ^= *r >> 7, *r ^= *r << 17;
+    return (double)(*r >> 11) / 9007199254740992.0;
+}
+
+static void test_fast_bound(void **state) {
+    (void)state;
+    static double om[OM_SIZE];
+    omega_table(om);
+    uint64_t r = 0x9e3779b97f4a7c15ull;
+#define UNIT() unit_draw(&r)
+    double worst[2] = {0, 0};
+    int bad = 0;
+    for (int n = 0; n < 400000; n++) {
+        double c = pow(10, -14 + 15 * UNIT()), nVt = 0.02 + 0.08 * UNIT(), Is = c * nVt, R = 1;
+        double al = pow(10, -6 + 9.3 * UNIT()) * (UNIT() < 0.5 ? -1 : 1), a = al * nVt;
+        int pair = n & 1, exact = (n >> 1) & 1;
+        double lnc = log(R * Is / nVt);
+        double v = diode_fast(a, R, Is, nVt, pair, lnc, om, exact ? 1e-12 : FAST_BOUND, 50);
+        double vx = (double)(nVt * exact_x(a / nVt, (long double)R * Is / nVt, pair));
+        double e = fabs(v - vx) / (fabs(vx) + nVt), lim = exact ? 1e-12 + 8 * DBL_EPSILON * fabs(vx) / (fabs(vx) + nVt)
+                                                                  : FAST_BOUND;
+        worst[exact] = fmax(worst[exact], e);
+        if (!(e <= lim) && bad++ < 10)
+            print_message("c %.3g nVt %.3g a %.17g pair %d tol %s: v %.17g, exact %.17g (%.3g of |v| + nVt)\n", c, nVt,
+                          a, pair, exact ? "1e-12" : "FAST_BOUND", v, vx, e);
+    }
+#undef UNIT
+    print_message("fast, 400000 samples: worst error over |v| + nVt %.3g with the table (bound %.0e), %.3g with "
+                  "tol 1e-12\n", worst[0], FAST_BOUND, worst[1]);
+    assert_int_equal(bad, 0);
+}
+
+/* The voice with --tol 1e-12 (Halley steps after the table) across the
+ * range: the table over y = ln c + |a| / nVt + c, Halley from the
+ * asymptote past it, and pairs whose c passes FAST_CMAX.  Single diodes
+ * and pairs whose c runs from 1e-11 to about
  * 10, at 8, 48 and 192 kHz, driven by 440 Hz sines of 1 mV to 1 kV (the
  * largest reaching past the table on both sides) and the random steps,
  * must match refsim like the other exact solvers, to TOL_SOLVER.  The
@@ -534,7 +616,7 @@ static void test_fast_range(void **state) {
             Circuit *c = wdc_load(path);
             assert_non_null(c);
             tl_voice v;
-            static const char *const args[] = {"--solver", "fast", NULL};
+            static const char *const args[] = {"--solver", "fast", "--tol", "1e-12", NULL};
             if (tl_voice_build_args(path, 0, args, NULL, &v) != 0) {
                 tl_voice_free(&v);
                 fail_msg("%s: the voice could not be built", path);
@@ -1158,6 +1240,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_diode_clipper),
         cmocka_unit_test(test_diode_single),
+        cmocka_unit_test(test_fast_bound),
         cmocka_unit_test(test_fast_range),
         cmocka_unit_test(test_hammer_ref),
         cmocka_unit_test(test_mallet_ref),
