@@ -296,9 +296,6 @@ static bool returns_v(Ctx *x, int k) {
     return nl->kind == NL_DIODE && !nl->mutated && s != SOLVER_PWL && s != SOLVER_JOINT;
 }
 
-/* doubles of diode_fast's tables: OM_SIZE of templates/nl_fast.c.tmpl */
-#define OMEGA_TABLE 6144
-
 /* The fixed port resistance of nonlinear edge k of joint root rb, as the
  * voice stores it. */
 static double joint_R(Ctx *x, int rb, int k) {
@@ -309,13 +306,6 @@ static double joint_R(Ctx *x, int rb, int k) {
 static bool any_joint(Ctx *x) {
     for (int b = 0; b < x->w->nroots; b++)
         if (x->w->roots[b].joint)
-            return true;
-    return false;
-}
-
-static bool any_fast(Ctx *x) {
-    for (int k = 0; k < x->nnl; k++)
-        if (fast_diode(x, k))
             return true;
     return false;
 }
@@ -817,7 +807,7 @@ static void emit_nl_solve(Ctx *x, int k) {
         break;
     case SOLVER_FAST:
         emit(&o, "            t_v%d = diode_fast(", k);
-        emit(&o, "t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, c_nl%d_2, c_om, %s, %d);\n",
+        emit(&o, "t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, c_nl%d_2, fast_om, %s, %d);\n",
              k, k, k, k, nl->pair, k, x->opt->fast_tol > 0 ? format("%.17g", x->opt->fast_tol) : "FAST_BOUND", it);
         break;
     case SOLVER_OMEGA:
@@ -1537,8 +1527,6 @@ static void emit_hoist(Ctx *x) {
         local(x, format("s_wpre%d", k), format("    real s_wpre%d = st->s_wpre[%d];\n", k, k),
               format("    st->s_wpre[%d] = s_wpre%d;\n", k, k), NULL);
     local(x, "k_T", "    const double k_T = 1.0 / st->fs;\n", NULL, NULL);
-    if (any_fast(x))
-        local(x, "c_om", "    const double *const c_om = st->c_om;\n", NULL, NULL);
     for (int k = 0; k < x->nnl; k++) {
         local(x, format("k_Rn%d", k), format("    const real k_Rn%d = st->c_Rn[%d];\n", k, k), NULL, NULL);
         local(x, format("k_gn%d", k), format("    const real k_gn%d = %s / st->c_Rn[%d];\n", k, lit(x, 0.5), k), NULL,
@@ -1903,14 +1891,21 @@ static void emit_nonlinear(Ctx *x, Buf *kernels, Buf *tables, Buf *retune, Buf *
     }
     if (newton || memory || joint)
         emit(kernels, "%s", tmpl_nl_diode_i);
-    if (newton || fast)
+    if (newton)
         emit(kernels, "%s", tmpl_nl_wright);
     if (newton)
         emit(kernels, "%s", tmpl_nl_diode);
     if (omega)
         emit(kernels, "%s", tmpl_nl_omega);
-    if (fast)
+    if (fast) {
+        int n;
+        const double *om = fast_tables(&n);
         emit(kernels, "%s", tmpl_nl_fast);
+        emit(tables, "/* diode_fast's tables (templates/nl_fast_table.c.tmpl): a cubic in t per line */\n"
+                     "static const double fast_om[OM_SIZE] = {\n");
+        for (int i = 0; i < n; i++)
+            emit(tables, "%s%a%s", i % 4 ? " " : "    ", om[i], i + 1 < n ? (i % 4 == 3 ? ",\n" : ",") : "\n};\n");
+    }
     if (pwl)
         emit(kernels, "%s", tmpl_nl_pwl);
     if (memory || joint)
@@ -2376,8 +2371,6 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "c_Rn", x->nnl, "nonlinear edges: adapted port resistance");
     field(&b, r, "c_nl", 4 * x->nnl,
           "nonlinear edges: Is, n Vt, ln(R Is / n Vt) (diode) or k, alpha, lambda, gap (contact)");
-    field(&b, "double", "c_om", any_fast(x) ? OMEGA_TABLE : 0,
-          "diode_fast: Wright omega, 1 / (omega (1 + omega)) and their slopes");
     field(&b, r, "s_nX", x->nnl, "contacts: x(n0) - x(n1), m");
     field(&b, r, "s_nv", x->nnl, "nonlinear edges: last voltage (velocity) across");
     field(&b, r, "s_nf", x->nnl,
@@ -2765,7 +2758,7 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
         emit(&head, "    const double T = 1.0 / st->fs;\n");
     set(t, "update_args", format("state *st%s%s", ud ? ", unsigned long long d" : "", uf ? ", int full" : ""));
     set(t, "update", format("%s%s", str(&head), body));
-    set(t, "init", format("%s%s    update(st%s%s);\n", any_fast(x) ? "    omega_table(st->c_om);\n" : "",
+    set(t, "init", format("%s    update(st%s%s);\n",
                           c->nparams ? "    for (int i = 0; i < N_PARAMS; i++)\n        st->p[i] = param_desc[i].def;\n"
                                      : "",
                           ud ? ", 0" : "", uf ? ", 1" : ""));

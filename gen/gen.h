@@ -730,6 +730,10 @@ typedef struct EmitOpts {
 /* Writes outdir/NAME.c and outdir/NAME.h; returns 0 or -1 (I/O error). */
 int emit_voice(const Wdf *w, const EmitOpts *o);
 
+/* fasttab.c: the fast diode solver's tables (templates/nl_fast.c.tmpl),
+ * their *n doubles. */
+const double *fast_tables(int *n);
+
 /* lv2.c */
 
 enum { LV2_ENETLIST = -1, LV2_EIO = -2, LV2_ETOOL = -3 };

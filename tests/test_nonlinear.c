@@ -99,6 +99,7 @@
 
 #include "../templates/nl_wright.c.tmpl"
 #include "../templates/nl_fast.c.tmpl"
+#include "../templates/nl_fast_table.c.tmpl"
 
 #define FS 48000.0
 #define SECONDS 0.2
