@@ -2756,20 +2756,21 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
         emit(&head, "    const double *p = st->p;\n");
     if (uses(body, "T"))
         emit(&head, "    const double T = 1.0 / st->fs;\n");
-    set(t, "update_args", format("state *st%s%s", ud ? ", unsigned long long d" : "", uf ? ", int full" : ""));
+    if (c->nparams) /* the params changed since the last call, taken */
+        emit(&head, "%s    st->dirty = 0;\n", ud ? "    const unsigned long long d = st->dirty;\n" : "");
+    set(t, "update_args", format("state *st%s", uf ? ", int full" : ""));
     set(t, "update", format("%s%s", str(&head), body));
-    set(t, "init", format("%s    update(st%s%s);\n",
+    set(t, "init", format("%s    update(st%s);\n",
                           c->nparams ? "    for (int i = 0; i < N_PARAMS; i++)\n        st->p[i] = param_desc[i].def;\n"
                                      : "",
-                          ud ? ", 0" : "", uf ? ", 1" : ""));
+                          uf ? ", 1" : ""));
     set(t, "param_fns", c->nparams ? tmpl_params
                                    : "/* The voice has no params: every id is unknown. */\n"
                                      "static int voice_set_param(void *vst UNUSED, int id UNUSED, double value UNUSED) { return -1; }\n\n"
                                      "static double voice_get_param(const void *vst UNUSED, int id UNUSED) { return 0; }\n");
     if (!c->nparams)
         return "";
-    return format("    if (st->dirty) {\n        update(st%s%s);\n        st->dirty = 0;\n    }\n", ud ? ", st->dirty" : "",
-                  uf ? ", 0" : "");
+    return format("    if (st->dirty)\n        update(st%s);\n", uf ? ", 0" : "");
 }
 
 /* ---- lanes: process for many instances at once ---- */
@@ -3019,11 +3020,11 @@ static void measure_holes(Ctx *x, Holes *t, const char *energy) {
     set(t, "energy_args", *energy ? "const void *vst" : "const void *vst UNUSED");
     set(t, "energy", *energy ? format("    const state *st = vst;\n    double E = 0;\n%s    return E;\n", energy)
                              : "    return 0;\n");
-    set(t, "work", x->energy && x->nsrc ? "static double voice_work(const void *vst) { return ((const state *)vst)->s_work; }"
+    set(t, "work", x->energy && x->nsrc ? "static double voice_work(const void *vst) { return ((const state *)vst)->s_work; }\n\n"
                    : x->energy          ? "/* The voice has no sources: nothing does work on it. */\n"
-                                          "static double voice_work(const void *vst UNUSED) { return 0; }"
-                                        : "/* Work is counted in a voice compiled with --energy only. */\n"
-                                          "static double voice_work(const void *vst UNUSED) { return (double)NAN; }");
+                                          "static double voice_work(const void *vst UNUSED) { return 0; }\n\n"
+                                        : ""); /* counted with --energy only; the class's work is NULL */
+    set(t, "work_entry", x->energy ? "voice_work" : "NULL");
 }
 
 /* settle's cases for controlled sources and op-amps: each output's row

@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 5
+#define WDV_ABI_VERSION 6
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -87,7 +87,7 @@ typedef struct wdv_class {
     double (*energy)(const void *state);
     /* Work done on the network by its sources since reset, in J.  Counted
      * only by a voice compiled with `wdc --energy`; any other voice's
-     * process does no such accounting and this returns NaN. */
+     * process does no such accounting and this is NULL. */
     double (*work)(const void *state);
     /* A strike: sets the named initial conditions (ids into ic_targets)
      * on top of the present state; reactances the targets do not touch keep

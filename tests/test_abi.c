@@ -131,8 +131,8 @@ static void test_strike_parallel_masses(void **s) {
     }
 }
 
-/* Without --energy a voice counts no work: work() is NaN, and what it
- * renders is the same to the bit. */
+/* Without --energy a voice counts no work: its class has no work (NULL),
+ * and what it renders is the same to the bit. */
 static void test_work_only_with_energy(void **s) {
     (void)s;
     tl_voice v[2];
@@ -151,7 +151,7 @@ static void test_work_only_with_energy(void **s) {
         double *out[3] = {o[k][0], o[k][1], o[k][2]};
         c->process(st[k], in, out, 64);
     }
-    assert_true(isnan(v[0].cls->work(st[0])));
+    assert_null(v[0].cls->work);
     assert_true(v[1].cls->work(st[1]) > 0);
     assert_memory_equal(o[0], o[1], sizeof o[0]);
     assert_true(v[0].cls->energy(st[0]) == v[1].cls->energy(st[1]));

@@ -145,7 +145,7 @@ static void lanes_same(const char *path, int single, int energy) {
     int ediff = 0;
     for (int l = 0; l < LANES; l++) {
         double ea = cls->energy(a.st[l]), eb = cls->energy(b.st[l]);
-        double wa = cls->work(a.st[l]), wb = cls->work(b.st[l]);
+        double wa = energy ? cls->work(a.st[l]) : 0, wb = energy ? cls->work(b.st[l]) : 0;
         ediff += memcmp(&ea, &eb, sizeof ea) != 0;
         ediff += energy && memcmp(&wa, &wb, sizeof wa) != 0;
     }

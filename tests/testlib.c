@@ -540,7 +540,7 @@ int tl_run_side_by_side(const Circuit *c, const wdv_class *cls,
                 refsim_set_param(rf, p, o->params0[p]);
         }
     r->venergy0 = cls->energy(st);
-    r->vwork0 = cls->work(st);
+    r->vwork0 = cls->work ? cls->work(st) : NAN;
     r->renergy0 = rs ? refsim_energy(rs) : 0.0;
     r->rwork0 = rs ? refsim_work(rs) : 0.0;
 
@@ -579,7 +579,7 @@ int tl_run_side_by_side(const Circuit *c, const wdv_class *cls,
         }
         if (o->track_energy) {
             r->venergy[end - 1] = cls->energy(st);
-            r->vwork[end - 1] = cls->work(st);
+            r->vwork[end - 1] = cls->work ? cls->work(st) : NAN;
             r->renergy[end - 1] = rs ? refsim_energy(rs) : 0.0;
             r->rwork[end - 1] = rs ? refsim_work(rs) : 0.0;
         }
