@@ -519,7 +519,8 @@ static void test_diode_single(void **state) {
  * for every c), one diode and pairs.  The exact root comes from
  * bracketed Newton in long double.  With the table alone (tol
  * FAST_BOUND) every v must lie within FAST_BOUND (|v| + nVt) of it; with
- * tol 1e-12 (Halley steps), within 1e-12 (|v| + nVt) and 8 ulp of v. */
+ * tol 1e-12 (Halley steps), within 1e-12 (|v| + nVt) and 8 ulp of v.  A
+ * wave of 0 (or -0) must get exactly 0 back. */
 static long double exact_x(long double al, long double c, int pair) {
     if (pair && al < 0)
         return -exact_x(-al, c, pair);
@@ -559,7 +560,11 @@ static void test_fast_bound(void **state) {
         double al = pow(10, -6 + 9.3 * UNIT()) * (UNIT() < 0.5 ? -1 : 1), a = al * nVt;
         int pair = n & 1, exact = (n >> 1) & 1;
         double lnc = log(R * Is / nVt);
-        double v = diode_fast(a, R, Is, nVt, pair, lnc, om, exact ? 1e-12 : FAST_BOUND, 50);
+        double w0 = fast_zero(R, Is, nVt, pair, lnc, om);
+        double v = diode_fast(a, R, Is, nVt, pair, lnc, w0, om, exact ? 1e-12 : FAST_BOUND, 50);
+        double v0 = diode_fast(n & 4 ? 0.0 : -0.0, R, Is, nVt, pair, lnc, w0, om, exact ? 1e-12 : FAST_BOUND, 50);
+        if (v0 != 0 && bad++ < 10) /* a silent wave gets exactly 0 back */
+            print_message("c %.3g nVt %.3g pair %d tol %s: v(0) = %.3g\n", c, nVt, pair, exact ? "1e-12" : "FAST_BOUND", v0);
         double vx = (double)(nVt * exact_x(a / nVt, (long double)R * Is / nVt, pair));
         double e = fabs(v - vx) / (fabs(vx) + nVt), lim = exact ? 1e-12 + 8 * DBL_EPSILON * fabs(vx) / (fabs(vx) + nVt)
                                                                   : FAST_BOUND;
@@ -572,6 +577,38 @@ static void test_fast_bound(void **state) {
     print_message("fast, 400000 samples: worst error over |v| + nVt %.3g with the table (bound %.0e), %.3g with "
                   "tol 1e-12\n", worst[0], FAST_BOUND, worst[1]);
     assert_int_equal(bad, 0);
+}
+
+/* The clippers with the fast solver, double and float, at 8, 48 and 192
+ * kHz: a silent input gives exactly 0 on every output, sample after
+ * sample (the tables' value at a = 0 is taken out). */
+static void test_fast_silence(void **state) {
+    (void)state;
+    static const char *const nets[] = {"netlists/diode_clipper.wdn", "netlists/diode_single.wdn"};
+    static const double rates[] = {8000.0, 48000.0, 192000.0};
+    static const char *const args[] = {"--solver", "fast", NULL};
+    const long N = 4800;
+    double *in = calloc((size_t)N, sizeof(double));
+    assert_non_null(in);
+    for (int k = 0; k < 2; k++)
+        for (int single = 0; single < 2; single++) {
+            char var[96];
+            solver_free_variant(nets[k], var, sizeof var);
+            tl_voice v;
+            assert_int_equal(tl_voice_build_args(var, single, args, NULL, &v), 0);
+            for (int r = 0; r < 3; r++) {
+                double **out = bufs_new(v.cls->n_outputs, N);
+                run_voice(v.cls, rates[r], in, N, out);
+                for (int o = 0; o < v.cls->n_outputs; o++)
+                    for (long n = 0; n < N; n++)
+                        if (out[o][n] != 0)
+                            fail_msg("%s (%s) at %.0f Hz: output %d is %g at sample %ld of silence", nets[k],
+                                     single ? "float" : "double", rates[r], o, out[o][n], n);
+                tl_bufs_free(out, v.cls->n_outputs);
+            }
+            tl_voice_free(&v);
+        }
+    free(in);
 }
 
 /* The voice with --tol 1e-12 (Halley steps after the table) across the
@@ -1242,6 +1279,7 @@ int main(void) {
         cmocka_unit_test(test_diode_clipper),
         cmocka_unit_test(test_diode_single),
         cmocka_unit_test(test_fast_bound),
+        cmocka_unit_test(test_fast_silence),
         cmocka_unit_test(test_fast_range),
         cmocka_unit_test(test_hammer_ref),
         cmocka_unit_test(test_mallet_ref),
