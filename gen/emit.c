@@ -462,14 +462,11 @@ static void emit_update(Ctx *x, Buf *o) {
         else if (*x->rfn[b])
             emit(o, "    %s\n        root%d_solve(st);\n", guard(x->w->roots[b].pmask), b);
     }
-    for (int k = 0; k < x->nnl; k++) /* diode_fast's ln c, from the adapted port and the law, and its zero */
-        if (fast_diode(x, k)) {
-            const char *R = dbl(x, format("st->c_Rn[%d]", k)), *Is = dbl(x, format("st->c_nl[%d]", 4 * k)),
-                       *nVt = dbl(x, format("st->c_nl[%d]", 4 * k + 1));
-            emit(o, "    st->c_nl[%d] = (real)log(%s * %s / %s);\n", 4 * k + 2, R, Is, nVt);
-            emit(o, "    st->c_fw[%d] = fast_zero(%s, %s, %s, %d, %s, fast_om);\n", k, R, Is, nVt,
-                 nl_elem(x, k)->nl->pair, dbl(x, format("st->c_nl[%d]", 4 * k + 2)));
-        }
+    for (int k = 0; k < x->nnl; k++) /* diode_fast's constants, from the adapted port and the law */
+        if (fast_diode(x, k))
+            emit(o, "    fast_setup(st->c_fk + %d, %s, %s, %s, %d, fast_om);\n", 6 * k, dbl(x, format("st->c_Rn[%d]", k)),
+                 dbl(x, format("st->c_nl[%d]", 4 * k)), dbl(x, format("st->c_nl[%d]", 4 * k + 1)),
+                 nl_elem(x, k)->nl->pair);
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (e->kind == E_W && e->peer > i) /* one delay per line */
@@ -810,9 +807,10 @@ static void emit_nl_solve(Ctx *x, int k) {
         emit(&o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
         break;
     case SOLVER_FAST:
-        emit(&o, "            t_v%d = diode_fast(", k);
-        emit(&o, "t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, c_nl%d_2, c_fw%d, fast_om, %s, %d);\n",
-             k, k, k, k, nl->pair, k, k, x->opt->fast_tol > 0 ? format("%.17g", x->opt->fast_tol) : "FAST_BOUND", it);
+        emit(&o, "            t_v%d = diode_fast(t_an%d, %d, ", k, k, nl->pair);
+        for (int j = 0; j < 6; j++)
+            emit(&o, "c_fk%d_%d, ", k, j);
+        emit(&o, "fast_om, %s, %d);\n", x->opt->fast_tol > 0 ? format("%.17g", x->opt->fast_tol) : "FAST_BOUND", it);
         break;
     case SOLVER_OMEGA:
         emit(&o, "            t_v%d = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
@@ -1535,7 +1533,9 @@ static void emit_hoist(Ctx *x) {
         local(x, format("k_Rn%d", k), format("    const real k_Rn%d = st->c_Rn[%d];\n", k, k), NULL, NULL);
         local(x, format("k_gn%d", k), format("    const real k_gn%d = %s / st->c_Rn[%d];\n", k, lit(x, 0.5), k), NULL,
               NULL);
-        local(x, format("c_fw%d", k), format("    const double c_fw%d = st->c_fw[%d];\n", k, k), NULL, NULL);
+        for (int j = 0; j < 6; j++)
+            local(x, format("c_fk%d_%d", k, j), format("    const double c_fk%d_%d = st->c_fk[%d];\n", k, j, 6 * k + j),
+                  NULL, NULL);
         for (int j = 0; j < 4; j++)
             local(x, format("c_nl%d_%d", k, j),
                   format("    const double c_nl%d_%d = %s;\n", k, j, dbl(x, format("st->c_nl[%d]", 4 * k + j))), NULL,
@@ -2377,9 +2377,9 @@ static const char *state_fields(Ctx *x, int nd) {
     int nfast = 0;
     for (int k = 0; k < x->nnl; k++)
         nfast += fast_diode(x, k);
-    field(&b, "double", "c_fw", nfast ? x->nnl : 0, "diode_fast: its tables' value at a = 0");
+    field(&b, "double", "c_fk", nfast ? 6 * x->nnl : 0, "diode_fast: each diode's constants (fast_setup)");
     field(&b, r, "c_nl", 4 * x->nnl,
-          "nonlinear edges: Is, n Vt, ln(R Is / n Vt) (diode) or k, alpha, lambda, gap (contact)");
+          "nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact)");
     field(&b, r, "s_nX", x->nnl, "contacts: x(n0) - x(n1), m");
     field(&b, r, "s_nv", x->nnl, "nonlinear edges: last voltage (velocity) across");
     field(&b, r, "s_nf", x->nnl,

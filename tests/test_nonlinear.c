@@ -559,10 +559,11 @@ static void test_fast_bound(void **state) {
         double c = pow(10, -14 + 15 * UNIT()), nVt = 0.02 + 0.08 * UNIT(), Is = c * nVt, R = 1;
         double al = pow(10, -6 + 9.3 * UNIT()) * (UNIT() < 0.5 ? -1 : 1), a = al * nVt;
         int pair = n & 1, exact = (n >> 1) & 1;
-        double lnc = log(R * Is / nVt);
-        double w0 = fast_zero(R, Is, nVt, pair, lnc, om);
-        double v = diode_fast(a, R, Is, nVt, pair, lnc, w0, om, exact ? 1e-12 : FAST_BOUND, 50);
-        double v0 = diode_fast(n & 4 ? 0.0 : -0.0, R, Is, nVt, pair, lnc, w0, om, exact ? 1e-12 : FAST_BOUND, 50);
+        double k[6];
+        fast_setup(k, R, Is, nVt, pair, om);
+        double v = diode_fast(a, pair, k[0], k[1], k[2], k[3], k[4], k[5], om, exact ? 1e-12 : FAST_BOUND, 50);
+        double v0 = diode_fast(n & 4 ? 0.0 : -0.0, pair, k[0], k[1], k[2], k[3], k[4], k[5], om,
+                               exact ? 1e-12 : FAST_BOUND, 50);
         if (v0 != 0 && bad++ < 10) /* a silent wave gets exactly 0 back */
             print_message("c %.3g nVt %.3g pair %d tol %s: v(0) = %.3g\n", c, nVt, pair, exact ? "1e-12" : "FAST_BOUND", v0);
         double vx = (double)(nVt * exact_x(a / nVt, (long double)R * Is / nVt, pair));

@@ -845,7 +845,9 @@ Circuit *tl_load_both(const char *path, const char *name, tl_voice *vd, tl_voice
         fail_msg("%s: %s does not load", name, path);
     if (!refsim_can_simulate(c))
         fail_msg("%s: refsim cannot simulate it", name);
-    if (tl_voice_build(path, 0, vd) != 0 || tl_voice_build(path, 1, vf) != 0)
+    /* diodes solved to 1e-12 like the reference, not to the fast solver's table */
+    static const char *const exact[] = {"--tol", "1e-12", NULL};
+    if (tl_voice_build_args(path, 0, exact, NULL, vd) != 0 || tl_voice_build_args(path, 1, exact, NULL, vf) != 0)
         fail_msg("%s: the voice could not be built", name);
     return c;
 }

@@ -47,7 +47,8 @@ int tl_voice_build_args(const char *netlist, int single, const char *const *extr
  * first line printed goes to *report (in the arena). */
 Circuit *tl_netlist_load(const char *text, const char **report);
 /* Loads the netlist at path (which refsim must simulate) and builds its
- * voice in double (*vd) and in float (*vf): the circuit, after a cmocka
+ * voice in double (*vd) and in float (*vf), diodes solved to --tol 1e-12
+ * like the reference: the circuit, after a cmocka
  * failure naming `name` if any step fails. */
 Circuit *tl_load_both(const char *path, const char *name, tl_voice *vd, tl_voice *vf);
 /* Unloads the voice and removes its directory.  Directories of voices
