@@ -1182,10 +1182,10 @@ static void emit_root(Ctx *x, int b) {
                 if ((r->edge[j].kind == EDGE_NL) != (nl > 0) || is_zero(in) || x->mzero[b][k * r->nedge + j])
                     continue;
                 int g = r->edge[j].kind == EDGE_NL ? x->nl_first[b] + j - r->nport : -1;
-                if (g < 0 || !returns_v(x, g))
-                    nl < 2 ? mterm(x, &t, b, k, j, in) : (void)0;
-                else
+                if (g >= 0 && returns_v(x, g))
                     vterm(x, &t, b, k, j, g, nl == 2);
+                else if (nl < 2)
+                    mterm(x, &t, b, k, j, in);
             }
         const char *v = t.len ? str(&t) : lit(x, 0);
         if (x->idle[b]) /* the open contact: the port sees an open end */
