@@ -561,7 +561,12 @@ static void emit_waveguides(Ctx *x) {
             if (g->end[e])
                 continue;
             const char *sg = g->term[e] == 'c' ? "" : "-";
-            if (e == 0)
+            /* one flush in the loop: at end b, through which every wave
+             * passes once a round trip, or at end a where end b is joined */
+            if (e == 0 && !g->end[1])
+                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = %ss_wv[%d + ((t_pos - k_wNL%d) & %du)]; /* end a */\n", R,
+                    m, sg, L, w, m);
+            else if (e == 0)
                 put(x, NULL, "        s_wv[%d + (t_pos & %du)] = flush(%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]); /* end a */\n",
                     R, m, sg, L, w, m);
             else
