@@ -286,6 +286,13 @@ static bool fast_diode(Ctx *x, int k) {
     return nl->kind == NL_DIODE && !nl->mutated && solver_of(x, k) == SOLVER_FAST;
 }
 
+static bool any_fast(Ctx *x) {
+    for (int k = 0; k < x->nnl; k++)
+        if (fast_diode(x, k))
+            return true;
+    return false;
+}
+
 /* Nonlinear edge k is a diode (or pair) solved alone by a kernel that
  * returns its voltage t_vK: the root's sums take 2 t_vK - t_anK for its
  * wave t_bnK, with the t_anK term first, so that they wait for the solve
@@ -2379,10 +2386,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "s_wi", work ? x->nsrc : 0, "sources: last current (V) or voltage (I)");
     scalar(&b, work, "double s_work;", "work done by the sources since reset");
     field(&b, r, "c_Rn", x->nnl, "nonlinear edges: adapted port resistance");
-    int nfast = 0;
-    for (int k = 0; k < x->nnl; k++)
-        nfast += fast_diode(x, k);
-    field(&b, "double", "c_fk", nfast ? 6 * x->nnl : 0, "diode_fast: each diode's constants (fast_setup)");
+    field(&b, "double", "c_fk", any_fast(x) ? 6 * x->nnl : 0, "diode_fast: each diode's constants (fast_setup)");
     field(&b, r, "c_nl", 4 * x->nnl,
           "nonlinear edges: Is, n Vt (diode) or k, alpha, lambda, gap (contact)");
     field(&b, r, "s_nX", x->nnl, "contacts: x(n0) - x(n1), m");

@@ -234,8 +234,7 @@ static void test_param_changes(void **state) {
         Circuit *c = wdc_load(path);
         assert_non_null(c);
         tl_voice v;
-        static const char *const exact[] = {"--tol", "1e-12", NULL};
-        assert_int_equal(tl_voice_build_args(path, 0, fast ? NULL : exact, NULL, &v), 0);
+        assert_int_equal(tl_voice_build_args(path, 0, fast ? NULL : tl_exact_diodes, NULL, &v), 0);
         int id = tl_param_id(v.cls, "drive");
         assert_true(id >= 0);
         double fs = 48000;

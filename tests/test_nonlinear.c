@@ -369,15 +369,22 @@ static double diode_slope(const diode_info *d, double v) {
  * errors of a pwl voice with `points` table points, for a run whose
  * diode voltages stay within [vlo, vhi] and whose current peaks at
  * ipeak. */
+/* The carried error's factor K and the network's Gc and Rp of the header
+ * comment, for a run whose diode voltages stay within [vlo, vhi]. */
+static double carry_factor(const diode_info *d, const clipper_net *k, double fs, double vlo, double vhi, double *Gc,
+                           double *Rp) {
+    *Gc = 2.0 * k->C * fs, *Rp = 1.0 / (*Gc + 1.0 / k->R);
+    double gc = *Gc * *Rp;
+    double g = fmax(diode_slope(d, vlo), diode_slope(d, vhi));
+    double Vmin = 1.0 / (1.0 + *Rp * g);
+    return 1.0 / fmin(2.0 - 2.0 * gc, 2.0 * gc * Vmin);
+}
+
 static void pwl_bounds(const diode_info *d, const clipper_net *k, double fs, int points,
                        double vlo, double vhi, double ipeak, double *bv, double *bi) {
-    double delta = pwl_delta(d, points);
-    double Gc = 2.0 * k->C * fs, Gr = 1.0 / k->R, Rp = 1.0 / (Gc + Gr);
-    double gc = Gc * Rp;
-    double g = fmax(diode_slope(d, vlo), diode_slope(d, vhi));
-    double Vmin = 1.0 / (1.0 + Rp * g);
-    double K = 1.0 / fmin(2.0 - 2.0 * gc, 2.0 * gc * Vmin);
-    *bv = (1.0 + 2.0 * gc * K) * delta * d->nVt;
+    double delta = pwl_delta(d, points), Gc, Rp;
+    double K = carry_factor(d, k, fs, vlo, vhi, &Gc, &Rp);
+    *bv = (1.0 + 2.0 * Gc * Rp * K) * delta * d->nVt;
     *bi = 2.0 * delta * (ipeak + 2.0 * d->Is) + 2.0 * Gc * K * delta * d->nVt;
 }
 
@@ -386,13 +393,10 @@ static void pwl_bounds(const diode_info *d, const clipper_net *k, double fs, int
  * the current, (A - v) / Rp with A off by Rp |dh|, by 2 Gc K l + |dv| / Rp. */
 static void fast_bounds(const diode_info *d, const clipper_net *k, double fs, double vlo, double vhi, double *bv,
                         double *bi) {
-    double Gc = 2.0 * k->C * fs, Gr = 1.0 / k->R, Rp = 1.0 / (Gc + Gr);
-    double gc = Gc * Rp;
-    double g = fmax(diode_slope(d, vlo), diode_slope(d, vhi));
-    double Vmin = 1.0 / (1.0 + Rp * g);
-    double K = 1.0 / fmin(2.0 - 2.0 * gc, 2.0 * gc * Vmin);
+    double Gc, Rp;
+    double K = carry_factor(d, k, fs, vlo, vhi, &Gc, &Rp);
     double l = FAST_BOUND * (fmax(fabs(vlo), fabs(vhi)) + d->nVt);
-    *bv = (1.0 + 2.0 * gc * K) * l;
+    *bv = (1.0 + 2.0 * Gc * Rp * K) * l;
     *bi = 2.0 * Gc * K * l + *bv / Rp;
 }
 
@@ -542,17 +546,13 @@ static long double exact_x(long double al, long double c, int pair) {
     return x;
 }
 
-static double unit_draw(uint64_t *r) {
-    *r ^= *r << 13, *r ^= *r >> 7, *r ^= *r << 17;
-    return (double)(*r >> 11) / 9007199254740992.0;
-}
-
 static void test_fast_bound(void **state) {
     (void)state;
     static double om[OM_SIZE];
     omega_table(om);
-    uint64_t r = 0x9e3779b97f4a7c15ull;
-#define UNIT() unit_draw(&r)
+    tl_rng r;
+    tl_rng_seed(&r, 0x9e3779b97f4a7c15ull);
+#define UNIT() tl_rng_uniform(&r)
     double worst[2] = {0, 0};
     int bad = 0;
     for (int n = 0; n < 400000; n++) {

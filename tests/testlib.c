@@ -839,15 +839,16 @@ void tl_drive(tl_drive_kind kind, double amp, int hold, double fs, long n, uint6
     }
 }
 
+const char *const tl_exact_diodes[] = {"--tol", "1e-12", NULL};
+
 Circuit *tl_load_both(const char *path, const char *name, tl_voice *vd, tl_voice *vf) {
     Circuit *c = wdc_load(path);
     if (!c)
         fail_msg("%s: %s does not load", name, path);
     if (!refsim_can_simulate(c))
         fail_msg("%s: refsim cannot simulate it", name);
-    /* diodes solved to 1e-12 like the reference, not to the fast solver's table */
-    static const char *const exact[] = {"--tol", "1e-12", NULL};
-    if (tl_voice_build_args(path, 0, exact, NULL, vd) != 0 || tl_voice_build_args(path, 1, exact, NULL, vf) != 0)
+    if (tl_voice_build_args(path, 0, tl_exact_diodes, NULL, vd) != 0 ||
+        tl_voice_build_args(path, 1, tl_exact_diodes, NULL, vf) != 0)
         fail_msg("%s: the voice could not be built", name);
     return c;
 }

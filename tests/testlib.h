@@ -46,6 +46,9 @@ int tl_voice_build_args(const char *netlist, int single, const char *const *extr
  * with its diagnostics captured: the circuit, or NULL on an error; the
  * first line printed goes to *report (in the arena). */
 Circuit *tl_netlist_load(const char *text, const char **report);
+/* wdc arguments that solve diodes to 1e-12, as refsim does, rather than
+ * to the fast solver's table bound. */
+extern const char *const tl_exact_diodes[];
 /* Loads the netlist at path (which refsim must simulate) and builds its
  * voice in double (*vd) and in float (*vf), diodes solved to --tol 1e-12
  * like the reference: the circuit, after a cmocka
