@@ -33,7 +33,7 @@ build/%.o: %.c
 build/gen/templates.c: $(wildcard templates/*.tmpl) runtime/wdvoice.h scripts/embed.sh
 	@mkdir -p $(dir $@)
 	sh scripts/embed.sh $@ tmpl_voice_c=templates/voice.c.tmpl tmpl_voice_h=templates/voice.h.tmpl \
-		tmpl_wdvoice_h=runtime/wdvoice.h tmpl_nl_diode_i=templates/nl_diode_i.c.tmpl tmpl_nl_wright=templates/nl_wright.c.tmpl tmpl_nl_diode=templates/nl_diode.c.tmpl tmpl_nl_omega=templates/nl_omega.c.tmpl tmpl_nl_fast=templates/nl_fast.c.tmpl \
+		tmpl_wdvoice_h=runtime/wdvoice.h tmpl_nl_diode_i=templates/nl_diode_i.c.tmpl tmpl_nl_wright=templates/nl_wright.c.tmpl tmpl_nl_diode=templates/nl_diode.c.tmpl tmpl_nl_omega=templates/nl_omega.c.tmpl tmpl_nl_fast=templates/nl_fast.c.tmpl tmpl_nl_fast_lane=templates/nl_fast_lane.c.tmpl \
 		tmpl_nl_pwl=templates/nl_pwl.c.tmpl tmpl_nl_law=templates/nl_law.c.tmpl tmpl_nl_passive=templates/nl_passive.c.tmpl \
 		tmpl_nl_memory=templates/nl_memory.c.tmpl tmpl_nl_g=templates/nl_g.c.tmpl tmpl_nl_joint=templates/nl_joint.c.tmpl tmpl_nl_memcap=templates/nl_memcap.c.tmpl tmpl_waveguide=templates/waveguide.c.tmpl \
 		tmpl_waveguide_state=templates/waveguide_state.c.tmpl \

@@ -11,7 +11,7 @@
 #include "gen.h"
 #include "solve.h"
 
-extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[], tmpl_nl_fast[],
+extern const char tmpl_voice_c[], tmpl_voice_h[], tmpl_wdvoice_h[], tmpl_nl_diode_i[], tmpl_nl_wright[], tmpl_nl_diode[], tmpl_nl_omega[], tmpl_nl_fast[], tmpl_nl_fast_lane[],
     tmpl_nl_pwl[], tmpl_nl_law[], tmpl_nl_passive[], tmpl_nl_memory[], tmpl_nl_g[], tmpl_nl_joint[], tmpl_nl_memcap[], tmpl_waveguide[], tmpl_waveguide_state[],
     tmpl_lu[], tmpl_retune[], tmpl_root[], tmpl_nl_adapt[], tmpl_settle[], tmpl_params[], tmpl_ctl_stamp[];
 
@@ -1390,8 +1390,8 @@ static void emit_work(Ctx *x) {
 
 /* The sample loop's statements that an output or a state needs: from the
  * last back, a definition stays if a statement kept after it names it.
- * Returns their text; *live then holds every name it uses. */
-static const char *live_text(const Stmt *l, int n, Names *live) {
+ * Returns which stay; *live then holds every name they use. */
+static bool *live_keep(const Stmt *l, int n, Names *live) {
     bool *keep = arena_alloc(sizeof(bool) * (size_t)(n + 1));
     for (int i = n - 1; i >= 0; i--) {
         if (l[i].def && !names_has(live, l[i].def))
@@ -1399,6 +1399,12 @@ static const char *live_text(const Stmt *l, int n, Names *live) {
         keep[i] = true;
         names_scan(live, l[i].text);
     }
+    return keep;
+}
+
+/* The text of the statements live_keep keeps. */
+static const char *live_text(const Stmt *l, int n, Names *live) {
+    bool *keep = live_keep(l, n, live);
     Buf b = {0};
     for (int i = 0; i < n; i++)
         if (keep[i])
@@ -1407,6 +1413,18 @@ static const char *live_text(const Stmt *l, int n, Names *live) {
 }
 
 static const char *sample_text(Ctx *x, Names *live) { return live_text(x->stmt, x->nstmt, live); }
+
+/* text with every occurrence of `from` replaced by `to`. */
+static const char *replace_all(const char *text, const char *from, const char *to) {
+    Buf b = {0};
+    size_t n = strlen(from);
+    for (const char *p; (p = strstr(text, from));) {
+        emit(&b, "%.*s%s", (int)(p - text), text, to);
+        text = p + n;
+    }
+    emit(&b, "%s", text);
+    return str(&b);
+}
 
 /* Each line of text `levels` levels (four spaces each) deeper. */
 static const char *deeper(const char *text, int levels) {
@@ -2793,7 +2811,7 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
 
 /* ---- lanes: process for many instances at once ---- */
 
-/* Every identifier of C text that `lane` holds becomes t_ln[l].NAME, lane
+/* Every identifier of C text that `lane` holds becomes t_ln.NAME[l], lane
  * l's copy; members (after -> or .), comments and literals are left
  * alone. */
 static const char *in_lanes(const char *s, const Names *lane) {
@@ -2820,7 +2838,7 @@ static const char *in_lanes(const char *s, const Names *lane) {
             bool member = q && ((q[-1] == '.') || (b.len >= 2 && q[-2] == '-' && q[-1] == '>'));
             size_t slot;
             bool hit = !member && names_find(lane, s, (size_t)(p - s), &slot);
-            emit(&b, hit ? "t_ln[l].%.*s" : "%.*s", (int)(p - s), s);
+            emit(&b, hit ? "t_ln.%.*s[l]" : "%.*s", (int)(p - s), s);
             s = p;
         } else if (*s >= '0' && *s <= '9') { /* a number, with its suffixes and exponent */
             const char *p = s;
@@ -2859,16 +2877,88 @@ static bool split_decl(const char *decl, const char *name, const char **type, co
     return true;
 }
 
+/* A line of the sample loop's top level (eight spaces in) that declares:
+ * `[const ]TYPE NAME = VALUE;` or `TYPE NAME;` (a comment may follow),
+ * TYPE one of real, double, int and unsigned.  Returns 1 with *type,
+ * *name and *rest (what follows NAME) set; 2 for a declaration of
+ * another form (arrays, several names); 0 for a line that declares
+ * nothing. */
+static int top_decl(const char *line, const char **type, const char **name, const char **rest) {
+    static const char *const types[] = {"real", "double", "int", "unsigned"};
+    if (strncmp(line, "        ", 8) || line[8] == ' ')
+        return 0;
+    const char *p = line + 8;
+    if (!strncmp(p, "const ", 6))
+        p += 6;
+    for (int i = 0; i < 4; i++) {
+        size_t n = strlen(types[i]);
+        if (strncmp(p, types[i], n) || p[n] != ' ')
+            continue;
+        const char *q = p + n + 1, *e = q;
+        while (ident_char(*e))
+            e++;
+        if (e == q || (*q >= '0' && *q <= '9') || (strncmp(e, " = ", 3) && *e != ';'))
+            return 2;
+        *type = types[i];
+        *name = format("%.*s", (int)(e - q), q);
+        *rest = e;
+        return 1;
+    }
+    return 0;
+}
+
+/* The arguments of the call to `fn` on the line of text that holds it,
+ * split at their commas, into args (at most max); their count, or -1. */
+static int call_args(const char *text, const char *fn, const char **args, int max) {
+    const char *p = strstr(text, fn);
+    if (!p)
+        return -1;
+    p += strlen(fn);
+    int n = 0, depth = 0;
+    const char *a = p;
+    for (; *p && *p != '\n'; p++) {
+        if (*p == '(')
+            depth++;
+        else if ((*p == ',' && depth == 0) || (*p == ')' && depth-- == 0)) {
+            if (n == max)
+                return -1;
+            while (*a == ' ')
+                a++;
+            args[n++] = format("%.*s", (int)(p - a), a);
+            a = p + 1;
+            if (*p == ')')
+                return n;
+        }
+    }
+    return -1;
+}
+
+/* One lane member of process_batch's t_ln: a local, an input sample, a
+ * temporary that one loop over the lanes leaves to a later one, an output
+ * sample, an output's buffer or a solve's flag. */
+typedef struct LaneVar {
+    const char *type, *name;
+    bool loaded; /* filled from the state before the samples (lanes past nl copy lane 0) */
+} LaneVar;
+
 /* process_batch: n instances of the voice in lanes of WDV_LANES.  Each
- * lane loads its locals (t_ln[l], a struct of them) from its state, the
- * sample loop runs every lane at one frame before the next frame, and
- * each lane writes its locals back: each lane's arithmetic is process's,
- * so the lanes' outputs are bit for bit n process calls'.  A hammer's
- * idle loop is left out (its skip is exact).  A voice with delay lines or
- * strings, or whose locals do not all take the plain form, is batched by
+ * of the voice's locals becomes an array of one copy per lane (t_ln,
+ * a structure of arrays), loaded from each instance's state.  Per frame,
+ * the lanes' inputs are gathered; the sample loop's statements run as
+ * loops over the lanes, one after the other, with plain arithmetic on
+ * arrays that a compiler vectorises; the outputs are scattered; the
+ * lanes whose run of FLUSH_RUN samples ends there are flushed.  A diode
+ * that diode_fast solves ends one such loop: fast_lane answers every
+ * lane from the tables, and the lanes that need more (past the tables,
+ * a tighter tol) are answered again by diode_fast before the next loop.
+ * Temporaries that a later loop uses become lane arrays too.  Each lane
+ * does process's arithmetic in process's order, so the lanes' outputs
+ * are bit for bit n process calls'.  A hammer's idle loop is left out
+ * (its skip is exact).  A voice with delay lines or strings, or whose
+ * locals or temporaries do not all take the plain forms, is batched by
  * calling process for each instance: its lines are a working set of
  * their own. */
-static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
+static const char *batch_text(Ctx *x, const char *dirty) {
     static const char *const head =
         "/* process_batch's lanes: the instances whose samples are computed side by side */\n"
         "#define WDV_LANES 8\n\n"
@@ -2876,13 +2966,19 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
         " * in[l][k][i] and out[l][k][i] are instance l's. */\n"
         "static void voice_process_batch(void *const *states, int n, const double *const *const *ins%s,\n"
         "                                double *const *const *outs%s, int nframes) {\n";
+    const char *fallback =
+        format("%s    for (int l = 0; l < n; l++)\n        voice_process(states[l], ins[l], outs[l], nframes);\n}\n",
+               format(head, "", ""));
+    if (x->nloc == 0 || x->nline || x->c->nwgs)
+        return fallback;
     Names live = {0};
-    names_scan(&live, sample);
+    bool *skeep = live_keep(x->stmt, x->nstmt, &live);
     bool *keep = kept_locals(x, &live);
     Names lane = {0};
-    Buf fix = {0}, arr = {0}, load = {0}, wb = {0}, fl = {0};
-    bool plain = true;
-    for (int i = 0; i < x->nloc && plain; i++) {
+    LaneVar *var = arena_alloc(sizeof(LaneVar) * (size_t)(x->nloc + 4 * x->nstmt + 4 * x->c->nouts + 8));
+    int nvar = 0;
+    Buf fix = {0}, load = {0}, wb = {0}, fl = {0};
+    for (int i = 0; i < x->nloc; i++) {
         const Local *l = &x->loc[i];
         const char *type, *value;
         if (!keep[i])
@@ -2892,10 +2988,8 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
             emit(&fl, "%s", l->fl);
             continue;
         }
-        if (!l->name || !split_decl(l->decl, l->name, &type, &value)) {
-            plain = false;
-            break;
-        }
+        if (!l->name || !split_decl(l->decl, l->name, &type, &value))
+            return fallback;
         Names used = {0};
         names_scan(&used, value);
         bool fixed = true; /* a number, the same in every lane (cast to real, perhaps) */
@@ -2906,59 +3000,177 @@ static const char *batch_text(Ctx *x, const char *dirty, const char *sample) {
             continue;
         }
         names_put(&lane, l->name, strlen(l->name));
-        emit(&arr, "            %s%s%s;\n", type, type[strlen(type) - 1] == '*' ? "" : " ", l->name);
-        emit(&load, "            t_ln[l].%s = %s;\n", l->name, in_lanes(value, &lane));
+        var[nvar++] = (LaneVar){type, l->name, true};
+        emit(&load, "%s = %s;\n", l->name, value);
         emit(&wb, "%s", l->wb);
         emit(&fl, "%s", l->fl);
     }
-    /* delay lines and strings: each instance's lines are its own working
-     * set; interleaved sample by sample they would not stay in cache */
-    if (!plain || x->nloc == 0 || x->nline || x->c->nwgs)
-        return format("%s    for (int l = 0; l < n; l++)\n        voice_process(states[l], ins[l], outs[l], nframes);\n}\n",
-                      format(head, "", ""));
-    bool flushes = fl.len > 0;
-    if (flushes) {
-        names_put(&lane, "t_run", 5);
-        emit(&arr, "            unsigned t_run;\n");
-        emit(&load, "            t_ln[l].t_run = st->s_run;\n");
-        emit(&wb, "    st->s_run = t_run;\n");
+    /* the statements, cut into loops over the lanes at each diode that
+     * diode_fast solves; the inputs gathered, the outputs scattered */
+    int cap = x->nstmt + 1, nseg = 1;
+    Buf *seg = arena_alloc(sizeof(Buf) * (size_t)cap), *fixup = arena_alloc(sizeof(Buf) * (size_t)cap);
+    Buf gather = {0}, scatter = {0}, anys = {0};
+    for (int i = 0; i < x->nstmt; i++) {
+        if (!skeep[i])
+            continue;
+        const Stmt *s = &x->stmt[i];
+        const char *t = s->text;
+        int k;
+        if (s->def && sscanf(s->def, "t_in%d", &k) == 1 && !strcmp(t, format("        const real t_in%d = (real)in%d[n];\n", k, k))) {
+            names_put(&lane, s->def, strlen(s->def));
+            var[nvar++] = (LaneVar){"real", s->def, false};
+            emit(&gather, "%s = (real)in%d[n];\n", s->def, k);
+            continue;
+        }
+        const char *call = strstr(t, " = diode_fast(");
+        if (call) {
+            const char *a[12];
+            const char *line = call;
+            while (line > t && line[-1] != '\n')
+                line--;
+            if (sscanf(line, " t_v%d = diode_fast(", &k) != 1 || call_args(line, "diode_fast(", a, 12) != 11 ||
+                strncmp(t, format("        double t_v%d;", k), strlen(format("        double t_v%d;", k))))
+                return fallback;
+            const char *v = format("t_v%d", k), *slow = format("t_slow%d", k);
+            names_put(&lane, v, strlen(v));
+            names_put(&lane, slow, strlen(slow));
+            var[nvar++] = (LaneVar){"double", v, false};
+            var[nvar++] = (LaneVar){"int", slow, false};
+            const char *comment = strstr(t, "/*"), *eol = strchr(t, '\n');
+            if (comment && comment < eol)
+                emit(&seg[nseg - 1], "        %.*s\n", (int)(eol - comment), comment);
+            emit(&seg[nseg - 1], "        %s = fast_lane(%s, %s, %s, %s, %s, %s, %s, %s, %s, &%s);\n        t_any%d |= %s;\n", v,
+                 a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[8], a[9], slow, k, slow);
+            emit(&anys, "            int t_any%d = 0;\n", k);
+            const char *le = strchr(call, '\n') + 1, *close = strstr(le, "\n        }\n");
+            emit(&fixup[nseg - 1], "        if (t_any%d) /* lanes past the tables, or a tighter tol */\n"
+                                   "            for (int l = 0; l < nl; l++)\n                if (%s)\n        %.*s",
+                 k, slow, (int)(le - line), line);
+            nseg++;
+            if (close && close + 1 > le)
+                emit(&seg[nseg - 1], "        {\n%.*s        }\n", (int)(close + 1 - le), le);
+            continue;
+        }
+        for (int o = 0; o < x->c->nouts; o++)
+            t = replace_all(t, format("out[%d][n] = ", o), format("t_y%d = ", o));
+        emit(&seg[nseg - 1], "%s", t);
     }
-    const char *body = in_lanes(sample, &lane), *fbody = in_lanes(str(&fl), &lane);
-    const char *wtext = in_lanes(str(&wb), &lane), *ltext = format("%s%s", deeper(dirty, 2), str(&load));
+    for (int o = 0; o < x->c->nouts; o++) {
+        const char *y = format("t_y%d", o), *p = format("t_o%d", o);
+        names_put(&lane, y, strlen(y));
+        names_put(&lane, p, strlen(p));
+        var[nvar++] = (LaneVar){"double", y, false};
+        var[nvar++] = (LaneVar){"double *", p, false};
+        emit(&load, "%s = out[%d];\n", p, o);
+        emit(&scatter, "%s[n] = %s;\n", p, y);
+    }
+    /* temporaries that a later loop (or a diode's second answer) names */
+    for (int s = 0; s < nseg; s++) {
+        Names later = {0};
+        for (int r = 0; r < nseg; r++) {
+            if (r != s)
+                names_scan(&later, str(&seg[r]));
+            names_scan(&later, str(&fixup[r]));
+        }
+        Buf b = {0};
+        for (const char *p = str(&seg[s]); *p;) {
+            const char *e = strchr(p, '\n');
+            size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
+            const char *line = format("%.*s", (int)n, p), *type, *name, *rest;
+            p += n;
+            int d = top_decl(line, &type, &name, &rest);
+            if (d == 2) {
+                Names in = {0};
+                names_scan(&in, line);
+                for (size_t j = 0; j < in.cap; j++)
+                    if (in.key[j] && names_has(&later, in.key[j]) && !names_has(&lane, in.key[j]))
+                        return fallback;
+            }
+            if (d != 1 || !names_has(&later, name)) {
+                emit(&b, "%s", line);
+                continue;
+            }
+            names_put(&lane, name, strlen(name));
+            var[nvar++] = (LaneVar){type, name, false};
+            if (rest[0] == ';') { /* the declaration alone: its comment stays */
+                const char *c = strstr(rest, "/*");
+                if (c)
+                    emit(&b, "        %s", c);
+            } else
+                emit(&b, "        %s%s", name, rest);
+        }
+        seg[s] = b;
+    }
+    bool flushes = fl.len > 0;
+    /* a loop that names the state (a joint solve's counts) runs over the
+     * instances only; the others run over every lane, the lanes past nl
+     * repeating lane 0's work (never stored), so that their count is a
+     * constant */
+    bool wide = true;
+    for (int s = 0; s < nseg; s++)
+        wide = wide && !uses(str(&seg[s]), "st") && !uses(str(&fixup[s]), "st");
+    const char *lanes = wide ? "WDV_LANES" : "nl";
+    Buf body = {0};
+    if (gather.len) /* the lanes past nl read lane 0's input */
+        emit(&body, "            for (int l = 0; l < %s; l++) {\n%s            }\n", lanes, deeper(in_lanes(str(&gather), &lane), 4));
+    emit(&body, "%s", str(&anys));
+    for (int s = 0; s < nseg; s++) {
+        if (seg[s].len) {
+            const char *text = in_lanes(str(&seg[s]), &lane);
+            emit(&body, "            for (int l = 0; l < %s; l++) {\n%s%s            }\n", lanes,
+                 uses(text, "st") ? "                state *const st = vsts[l];\n" : "", deeper(text, 2));
+        }
+        emit(&body, "%s", deeper(in_lanes(str(&fixup[s]), &lane), 1));
+    }
+    if (scatter.len)
+        emit(&body, "            for (int l = 0; l < nl; l++) {\n%s            }\n", deeper(in_lanes(str(&scatter), &lane), 4));
+    if (flushes)
+        emit(&body, "            const unsigned t_m = t_fm[n %% FLUSH_RUN]; /* the lanes whose run ends here */\n"
+                    "            if (t_m)\n                for (int l = 0; l < nl; l++)\n"
+                    "                    if (t_m >> l & 1) {\n%s                    }\n",
+             deeper(in_lanes(str(&fl), &lane), 4));
+    if (uses(str(&body), "in") || uses(str(&body), "out"))
+        return fallback;
+    if (flushes)
+        emit(&wb, "    st->s_run = (st->s_run + (unsigned)nframes) %% FLUSH_RUN;\n");
+    const char *ltext = format("%s%s%s", deeper(dirty, 2), deeper(in_lanes(str(&load), &lane), 3),
+                               flushes ? "            t_fm[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN] |= 1u << l;\n" : "");
+    const char *wtext = deeper(in_lanes(str(&wb), &lane), 2);
     /* a lane's view of its own instance, named as process names it */
     static const char *const view[3] = {"state *const st = vsts[l];", "const double *const *const in = inl[l];",
                                         "double *const *const out = outl[l];"};
     static const char *const vname[3] = {"st", "in", "out"};
-    const char *loop = format("%s%s", deeper(body, 2),
-                              flushes ? format("                if (++t_ln[l].t_run == FLUSH_RUN) {\n"
-                                               "                    t_ln[l].t_run = 0;\n%s                }\n",
-                                               deeper(fbody, 3))
-                                      : "");
-    const char *parts[3] = {ltext, loop, deeper(wtext, 2)};
-    bool uin = false, uout = false;
-    for (int k = 0; k < 3; k++) {
-        uin |= uses(parts[k], "in");
-        uout |= uses(parts[k], "out");
-    }
+    bool uin = uses(ltext, "in") || uses(wtext, "in"), uout = uses(ltext, "out") || uses(wtext, "out");
     Buf b = {0};
-    emit(&b, "%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n",
+    emit(&b, "%s%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n", anys.len ? format("%s\n", tmpl_nl_fast_lane) : "",
          format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
     emit(&b, "        const int nl = n - l0 < WDV_LANES ? n - l0 : WDV_LANES;\n"
              "        void *const *const vsts = states + l0;\n%s%s%s",
          uin ? "        const double *const *const *const inl = ins + l0;\n" : "",
          uout ? "        double *const *const *const outl = outs + l0;\n" : "", str(&fix));
-    /* each lane's locals together: the lanes' interleaved work stays in
-     * few cache lines, and a compiler does not pack neighbouring lanes
-     * into vectors it would have to take apart again */
-    emit(&b, "        struct {\n%s        } t_ln[WDV_LANES];\n", str(&arr));
-    for (int k = 0; k < 3; k++) {
-        const char *ind = k == 1 ? "                " : "            ";
-        emit(&b, k == 1 ? "        for (int n = 0; n < nframes; n++) {\n            for (int l = 0; l < nl; l++) {\n"
-                        : "        for (int l = 0; l < nl; l++) {\n");
+    emit(&b, "        struct {\n");
+    for (int i = 0; i < nvar; i++)
+        emit(&b, "            %s%s%s[WDV_LANES];\n", var[i].type, var[i].type[strlen(var[i].type) - 1] == '*' ? "" : " ",
+             var[i].name);
+    emit(&b, "        } t_ln;\n");
+    if (flushes)
+        emit(&b, "        unsigned t_fm[FLUSH_RUN] = {0}; /* per frame mod FLUSH_RUN, the lanes whose run ends there */\n");
+    const char *parts[2] = {ltext, wtext};
+    for (int k = 0; k < 2; k++) {
+        emit(&b, k ? "        for (int l = 0; l < nl; l++) {\n" : "        for (int l = 0; l < nl; l++) {\n");
         for (int j = 0; j < 3; j++)
             if (uses(parts[k], vname[j]))
-                emit(&b, "%s%s\n", ind, view[j]);
-        emit(&b, "%s%s", parts[k], k == 1 ? "            }\n        }\n" : "        }\n");
+                emit(&b, "            %s\n", view[j]);
+        emit(&b, "%s        }\n", parts[k]);
+        if (k == 0 && wide) {
+            emit(&b, "        for (int l = nl; l < WDV_LANES; l++) { /* lanes past nl: copies of lane 0, not stored */\n");
+            for (int i = 0; i < nvar; i++)
+                if (var[i].loaded)
+                    emit(&b, "            t_ln.%s[l] = t_ln.%s[0];\n", var[i].name, var[i].name);
+            emit(&b, "        }\n");
+        }
+        if (k == 0)
+            emit(&b, "        for (int n = 0; n < nframes; n++) {\n%s        }\n", str(&body));
     }
     emit(&b, "    }\n}\n");
     return str(&b);
@@ -3006,7 +3218,7 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
                                  : "nframes - n > FLUSH_RUN ? n + FLUSH_RUN : nframes");
     set(t, "run_count", x->flushes ? "        t_run += (unsigned)(t_end - n);\n" : "");
     set(t, "writeback", str(&wb));
-    set(t, "batch", x->opt->batch ? batch_text(x, dirty, sample) : "");
+    set(t, "batch", x->opt->batch ? batch_text(x, dirty) : "");
     set(t, "batch_entry", x->opt->batch ? "voice_process_batch" : "NULL");
     set(t, "solve_stats", any_joint(x) ? "static void voice_solve_stats(const void *vst, unsigned long stats[WDV_SOLVE_N]) {\n"
                                          "    for (int k = 0; k < WDV_SOLVE_N; k++)\n"

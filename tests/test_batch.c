@@ -80,10 +80,15 @@ static void change(const wdv_class *cls, side *a, side *b, int l, tl_rng *r) {
     }
 }
 
-static void lanes_same(const char *path, int single, int energy) {
+/* The voice of `path` built with `args` (which hold --batch), its lanes
+ * against process calls; the inputs' amplitudes are drawn from 0.1 to 2.1,
+ * or log-uniformly from 0.01 to amax if amax is positive. */
+static void lanes_run(const char *path, int single, const char *const *args, double amax) {
     tl_voice v;
-    static const char *const batch[] = {"--batch", NULL}, *const counted[] = {"--batch", "--energy", NULL};
-    if (tl_voice_build_args(path, single, energy ? counted : batch, NULL, &v) != 0)
+    int energy = 0;
+    for (int i = 0; args[i]; i++)
+        energy |= !strcmp(args[i], "--energy");
+    if (tl_voice_build_args(path, single, args, NULL, &v) != 0)
         fail_msg("%s: the voice could not be built", path);
     const wdv_class *cls = v.cls;
     assert_non_null(cls->process_batch);
@@ -103,7 +108,7 @@ static void lanes_same(const char *path, int single, int energy) {
         for (int k = 0; k < cls->n_inputs; k++) {
             in[l][k] = malloc(sizeof(double) * FRAMES);
             assert_non_null(in[l][k]);
-            double amp = 0.1 + 2 * tl_rng_uniform(&r);
+            double amp = amax > 0 ? 0.01 * exp(log(amax / 0.01) * tl_rng_uniform(&r)) : 0.1 + 2 * tl_rng_uniform(&r);
             for (int n = 0; n < FRAMES; n++)
                 in[l][k][n] = amp * tl_rng_signed(&r);
         }
@@ -158,8 +163,12 @@ static void lanes_same(const char *path, int single, int energy) {
     }
     cls->process_batch(bst, 1, ipl, opl, 16);
     cls->process_batch(bst, 0, ipl, opl, 16);
-    printf("%-34s %-6s%s %d lanes, %d frames: %ld output samples and %d energies%s differ from process\n", path,
-           single ? "float" : "double", energy ? " --energy" : "", LANES, FRAMES, diff, ediff,
+    char opts[64] = "";
+    for (int i = 0; args[i]; i++)
+        if (strcmp(args[i], "--batch") && strlen(opts) + strlen(args[i]) + 2 < sizeof opts)
+            strcat(strcat(opts, " "), args[i]);
+    printf("%-34s %-6s%s%s %d lanes, %d frames: %ld output samples and %d energies%s differ from process\n", path,
+           single ? "float" : "double", opts, amax > 0 ? " (loud)" : "", LANES, FRAMES, diff, ediff,
            energy ? " and works" : "");
     if (diff)
         print_error("first at lane %d, output %d, frame %ld: process %.17g, batch %.17g\n", fl, fk, first,
@@ -172,6 +181,11 @@ static void lanes_same(const char *path, int single, int energy) {
     tl_voice_free(&v);
     assert_int_equal(diff, 0);
     assert_int_equal(ediff, 0);
+}
+
+static void lanes_same(const char *path, int single, int energy) {
+    static const char *const batch[] = {"--batch", NULL}, *const counted[] = {"--batch", "--energy", NULL};
+    lanes_run(path, single, energy ? counted : batch, 0);
 }
 
 static void test_netlist(void **state) {
@@ -209,8 +223,23 @@ static void test_energy(void **state) {
         lanes_same(nets[k], 0, 1);
 }
 
+/* Diodes that diode_fast solves, driven past its tables (inputs up to 3
+ * kV) and solved to a tighter tol than the tables': the lanes that
+ * fast_lane leaves to diode_fast get its answers, bit for bit. */
+static void test_fast_lanes(void **state) {
+    (void)state;
+    static const char *const nets[] = {"netlists/diode_clipper.wdn", "netlists/diode_single.wdn",
+                                       "netlists/clipper_asym.cir", "netlists/tubescreamer.cir"};
+    static const char *const batch[] = {"--batch", NULL}, *const tight[] = {"--batch", "--tol", "1e-12", NULL};
+    for (int k = 0; k < 4; k++)
+        for (int single = 0; single < 2; single++) {
+            lanes_run(nets[k], single, batch, 3000);
+            lanes_run(nets[k], single, tight, 30);
+        }
+}
+
 int main(void) {
     const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers), cmocka_unit_test(test_opt_in),
-                                       cmocka_unit_test(test_energy)};
-    return tl_run_per_netlist("batch", test_netlist, fixed, 3);
+                                       cmocka_unit_test(test_energy), cmocka_unit_test(test_fast_lanes)};
+    return tl_run_per_netlist("batch", test_netlist, fixed, 4);
 }
