@@ -181,7 +181,7 @@ build/bench/stkbench: build/bench/stkbench.o build/bench/stkshim.o build/bench/b
 # C written by hand, measured in one run (build/bench/chart) and drawn by
 # gnuplot: out/chart.csv, out/chart.png, out/chart.svg.  The peers' C is
 # compiled with the voices' flags; Faust's is made here from bench/faust/.
-PEER_CFLAGS = -std=c99 -fPIC -O2
+PEER_CFLAGS = -std=c99 -fPIC -O3 -march=native
 FAUST_OBJS  = build/bench/faust/rc_lowpass_d.o build/bench/faust/rc_lowpass_f.o \
 	build/bench/faust/diode_clipper_d.o build/bench/faust/diode_clipper_f.o
 

@@ -38,7 +38,7 @@
 #define NOISE_LEN 8192 /* frames of noise per input, cycled */
 #define RUNS 5
 #define WARMUP_S 0.2
-#define CFLAGS "-O2 -march=native"
+#define CFLAGS BENCH_CFLAGS
 
 /* ---- the measurement ---- */
 

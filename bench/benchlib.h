@@ -29,7 +29,7 @@
  * of one bench_time_voice and bench_render_voice take. */
 #define BENCH_MAXIO 16
 /* The flags the voices are compiled with. */
-#define BENCH_CFLAGS "-O2 -march=native"
+#define BENCH_CFLAGS "-O3 -march=native"
 /* The rates, in Hz: 48, 96 and 192 kHz. */
 #define BENCH_NRATES 3
 extern const double bench_rates[BENCH_NRATES];

@@ -13,13 +13,14 @@
  *     bin/wdc ($WDC overrides the path) emits the voice with --rate and
  *     the solver into a temporary directory, from a copy of the netlist
  *     without its solver= keys, and $CC (default cc) compiles it with
- *     -std=c99 -shared -fPIC -O2; the runtime loads it.  Each circuit
- *     again in double with the default solver and --batch: 8 instances
+ *     -std=c99 -shared -fPIC -O3 -march=native; the runtime loads it.
+ *     Each circuit again in double with the default solver and --batch: 8 instances
  *     rendered together by process_batch (solver "fast x8", "linear x8"),
  *     timed per voice-sample, its accuracy that of lane 0.
  *   - Faust: bench/faust/rc_lowpass.dsp and diode_clipper.dsp, on
  *     wdmodels.lib, made C by `faust -lang c` (float) and `-lang c
- *     -double`, compiled with the voices' flags (-std=c99 -fPIC -O2).
+ *     -double`, compiled with the voices' flags (-std=c99 -fPIC -O3
+ *     -march=native).
  *     The clipper's output lags its input by one sample (its source is a
  *     leaf of the tree): that sample is taken out before its error is
  *     measured.
@@ -102,7 +103,7 @@
 #define REPLUCK_S 1.0
 #define STK_LOWEST 50.0
 #define MAXIO 16
-#define CFLAGS "-O2"
+#define CFLAGS "-O3 -march=native"
 
 static const double rates[] = {48000.0, 96000.0, 192000.0};
 #define NRATES 3

@@ -85,7 +85,7 @@
 #define FS 48000.0
 #define BLOCK 64 /* the engines' grid block */
 #define HOST 256 /* frames per process call */
-#define CFLAGS "-O2 -march=native"
+#define CFLAGS BENCH_CFLAGS
 
 static long frames_of(double seconds) { return (long)floor(seconds * FS + 0.5); }
 

@@ -77,7 +77,7 @@
 #define RUNS 8
 #define WARM 0.25
 #define NOISE 48000 /* frames of noise (a multiple of BLOCK) */
-#define CFLAGS "-O2 -march=native"
+#define CFLAGS BENCH_CFLAGS
 
 static const double g_lis[3] = {10, 7.5, 1.7};
 static const wdrt_room g_room = {{0, 0, 0, 20, 15, 8}, 1.2, 0.8, 2};

@@ -39,7 +39,7 @@
 
 enum { EXIT_INPUT = 1, EXIT_USAGE = 2, EXIT_TOOL = 3 };
 
-#define VOICE_CFLAGS "-O2"
+#define VOICE_CFLAGS "-O3"
 
 static const char usage_text[] =
     "usage: wdrt render SCENE.wds [-o OUT.wav] [--seconds S] [--rate HZ]\n"
