@@ -216,6 +216,7 @@ typedef struct Ctx {
      * such contact stays open */
     bool *idle;      /* root -> idle root */
     int nidle;
+    int nic;         /* strike targets that set something (ic_targets) */
     int own;         /* the root the statements being put compute, -1: none */
     char phase;      /* their phase (Stmt.phase) */
     const char *dcop; /* a deck's DC operating point (dcop_static), or NULL */
@@ -1814,12 +1815,44 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
     }
 }
 
+/* Which strike targets set something, in ic_targets' order (node by node
+ * from 1, v then x): v(node) a capacitor (mass) from node to ground;
+ * x(node) an inductor (spring) from node to ground, a contact at node, or
+ * a displacement probe of node.  set[] takes 2 (nnodes - 1) entries.
+ * emit_ic_cases writes a case for just these. */
+void wdf_ic_settable(const Wdf *w, bool *set) {
+    const Circuit *c = w->c;
+    for (int id = 0; id < 2 * (c->nnodes - 1); id++)
+        set[id] = false;
+    for (int i = 0; i < w->nnodes; i++) {
+        const WNode *n = w->nodes[i];
+        if (n->kind != W_LEAF || !prims[c->elems[n->elem].kind].state)
+            continue;
+        const Elem *e = &c->elems[n->elem];
+        int nd = e->n[1] == 0 ? e->n[0] : e->n[0] == 0 ? e->n[1] : 0;
+        if (nd)
+            set[2 * (nd - 1) + (prims[e->kind].state != 'C')] = true;
+    }
+    for (int b = 0; b < w->nroots; b++)
+        for (int j = 0; j < w->roots[b].nnl; j++) {
+            const Elem *e = &c->elems[w->roots[b].edge[w->roots[b].nport + j].elem];
+            for (int t = 0; t < 2 && e->nl->kind == NL_CONTACT; t++)
+                if (e->n[t])
+                    set[2 * (e->n[t] - 1) + 1] = true;
+        }
+    for (int k = 0; k < c->nouts; k++)
+        if (c->outs[k].kind == PR_X && c->outs[k].n[0] && c->outs[k].n[1] == 0)
+            set[2 * (c->outs[k].n[0] - 1) + 1] = true;
+}
+
 /* strike targets: v(node) sets capacitors from node to ground, x(node)
  * sets inductors from node to ground and the node's displacement probes;
- * a target that sets nothing has no case */
+ * a target that sets nothing has no case (wdf_ic_settable) */
 static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
     const Circuit *c = x->c;
-    int id = 0;
+    int id = 0, full = 0;
+    bool *set = arena_alloc(sizeof(bool) * (size_t)(2 * c->nnodes + 1));
+    wdf_ic_settable(x->w, set);
     /* the reactances from each node to ground, in tree order */
     int *first = arena_alloc(sizeof(int) * (size_t)(c->nnodes + 1));
     int *next = arena_alloc(sizeof(int) * (size_t)(x->w->nnodes + 1));
@@ -1836,10 +1869,9 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
         }
     }
     for (int nd = 1; nd < c->nnodes; nd++)
-        for (int f = 0; f < 2; f++, id++) {
+        for (int f = 0; f < 2; f++, full++) {
             char fn = f ? 'x' : 'v';
             Buf t = {0};
-            emit(targets, "%s{\"%c(%s)\", \"%s\"}", id ? ", " : "", fn, c->nodes[nd], domain_unit(c->domain, fn));
             for (int i = first[nd]; i >= 0; i = next[i]) {
                 const WNode *n = x->w->nodes[i];
                 const Elem *e = &c->elems[n->elem];
@@ -1868,9 +1900,15 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                         emit(&t, "            st->s_x[%d] = values[k];\n", xp);
                     xp++;
                 }
-            if (t.len)
-                emit(cases, "        case %d: /* %c(%s) */\n%s            break;\n", id, fn, c->nodes[nd], str(&t));
+            if ((t.len > 0) != set[full])
+                die("strike target %c(%s): its cases and wdf_ic_settable disagree", fn, c->nodes[nd]);
+            if (!t.len)
+                continue;
+            emit(targets, "%s{\"%c(%s)\", \"%s\"}", id ? ", " : "", fn, c->nodes[nd], domain_unit(c->domain, fn));
+            emit(cases, "        case %d: /* %c(%s) */\n%s            break;\n", id, fn, c->nodes[nd], str(&t));
+            id++;
         }
+    x->nic = id;
 }
 
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
@@ -3235,12 +3273,17 @@ static void reset_holes(Ctx *x, Holes *t, const char *dirty, const char *rest, c
                                            uses(rest, "react") ? react : "", dirty, clears(x), rest));
     set(t, "reset_args", uses(reset, "vst") ? "void *vst" : "void *vst UNUSED");
     set(t, "reset", reset);
-    const char *sw = *cases ? format("        switch (ids[k]) {\n%s        }\n", cases) : "";
+    const char *sw = *cases ? format("    for (int k = 0; k < n; k++) {\n        switch (ids[k]) {\n%s        }\n    }\n", cases) : "";
     const char *res = x->settle ? format("settle(st, %s) == 0 ? 0 : -1", x->nreact ? "react" : "NULL") : "0";
     const char *head = format("%s%s%s", react, dirty, kirch);
     bool used = uses(format("%s%s%s", head, sw, res), "st");
-    set(t, "set_ic_args", format("void *vst%s, int n, const int *ids, const double *values", used ? "" : " UNUSED"));
+    set(t, "set_ic_args", format("void *vst%s, int n, const int *ids%s, const double *values%s", used ? "" : " UNUSED",
+                                 x->nic ? "" : " UNUSED", x->nic ? "" : " UNUSED"));
     set(t, "set_ic", used ? format("%s%s", st, head) : head);
+    set(t, "ic_check", x->nic ? format("    for (int k = 0; k < n; k++)\n"
+                                       "        if (ids[k] < 0 || ids[k] >= %d || values[k] != values[k])\n"
+                                       "            return -1;\n", x->nic)
+                              : "    if (n > 0) /* nothing to strike */\n        return -1;\n");
     set(t, "ic_cases", sw);
     set(t, "ic_result", res);
 }
@@ -3394,7 +3437,7 @@ static void emit_descriptors(Ctx *x, const char *targets, Buf *decl, Buf *ptrs) 
     const Circuit *c = x->c;
     static const char *const type[] = {"wdv_port", "wdv_port", "wdv_param", "wdv_ic_target"};
     static const char *const name[] = {"in_desc", "out_desc", "param_desc", "ic_desc"};
-    int n[] = {c->ninputs, c->nouts, c->nparams, 2 * (c->nnodes - 1)};
+    int n[] = {c->ninputs, c->nouts, c->nparams, x->nic};
     const char *init[] = {descriptors(x, 'i'), descriptors(x, 'o'), descriptors(x, 'p'), format("{%s}", targets)};
     for (int k = 0; k < 4; k++) {
         if (n[k])
@@ -3517,7 +3560,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         {"options", options}, {"summary", summary}, {"guard", guard}, {"real", real},
         {"precision", opt->single ? "32" : "64"}, {"state_fields", state_fields(&x, nd)},
         {"n_params", format("%d", c->nparams)}, {"n_inputs", format("%d", c->ninputs)},
-        {"n_outputs", format("%d", c->nouts)}, {"n_ic_targets", format("%d", 2 * (c->nnodes - 1))},
+        {"n_outputs", format("%d", c->nouts)}, {"n_ic_targets", format("%d", x.nic)},
         {"descriptors", str(&dtext)}, {"descriptor_ptrs", str(&dptrs)}, {"root_edges", rtab},
         {"root_desc", str(&rdesc)}, {"ic_elems", ictab}, {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)},
         {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"wg_fields", wg_fields(c)},

@@ -729,6 +729,10 @@ typedef struct EmitOpts {
 
 /* Writes outdir/NAME.c and outdir/NAME.h; returns 0 or -1 (I/O error). */
 int emit_voice(const Wdf *w, const EmitOpts *o);
+/* Which strike targets set something, by the id v(node) and x(node) take
+ * node by node from 1 (2 (node - 1) and one more): set[] takes 2 (nnodes -
+ * 1) entries.  A voice's ic_targets lists these, in this order. */
+void wdf_ic_settable(const Wdf *w, bool *set);
 
 /* fasttab.c: the fast diode solver's tables (templates/nl_fast.c.tmpl),
  * their *n doubles. */

@@ -268,8 +268,9 @@ typedef struct Event {
     int param;
     double value;
     int nic;
-    int ids[8];
+    int ids[8]; /* as find_ic_target gives them, then the voice's (settable_ids) */
     double vals[8];
+    SrcPos at[8]; /* each target's place in the events file */
 } Event;
 
 /* What a line of an events file is read against: the circuit and the
@@ -348,6 +349,7 @@ static void ev_ic(const EventCtx *x, int line, char **tok, const int *col, int n
         if (!sane_level(v))
             error_at(ev_pos(x, line, vcol), "a strike value must be at most %g in size, not '%s'", MAX_LEVEL, eq + 1);
         e->ids[e->nic] = id;
+        e->at[e->nic] = ev_pos(x, line, col[k]);
         e->vals[e->nic++] = v;
     }
 }
@@ -641,7 +643,7 @@ static int render(const Opts *o, const Circuit *c, double fs, Render *rd) {
         return EXIT_TOOL;
     }
     const wdv_class *cls = lib.cls;
-    if (cls->n_params != c->nparams || cls->n_ic_targets != 2 * (c->nnodes - 1) || cls->n_outputs != c->nouts)
+    if (cls->n_params != c->nparams || cls->n_ic_targets > 2 * (c->nnodes - 1) || cls->n_outputs != c->nouts)
         die("the compiled voice does not match its circuit");
     void *st = NULL;
     if (posix_memalign(&st, 64, (cls->state_size + 63) / 64 * 64) != 0) {
@@ -655,6 +657,50 @@ static int render(const Opts *o, const Circuit *c, double fs, Render *rd) {
     free(st);
     wdrt_voice_close(&lib);
     return status;
+}
+
+/* What a strike target that sets nothing would need, for its message. */
+static const char *ic_needs(char fn, const char *node) {
+    return fn == 'v' ? format("no capacitor (mass) joins '%s' to ground", node)
+                     : format("no inductor (spring) joins '%s' to ground, and no contact or displacement probe is at it",
+                              node);
+}
+
+/* The netlist's .ic targets and the events' strikes against the targets
+ * the voice can set (wdf_ic_settable): one that sets nothing is an error
+ * at its place; the events' ids become the voice's (ic_targets lists only
+ * the targets that set something). */
+static bool settable_ids(const Wdf *w, Render *rd) {
+    const Circuit *c = w->c;
+    int n = 2 * (c->nnodes - 1);
+    bool *set = arena_alloc(sizeof(bool) * (size_t)(n + 1));
+    int *id = arena_alloc(sizeof(int) * (size_t)(n + 1));
+    wdf_ic_settable(w, set);
+    for (int k = 0, m = 0; k < n; k++)
+        id[k] = set[k] ? m++ : -1;
+    jmp_buf jb;
+    diag.jmp = &jb;
+    if (setjmp(jb)) {
+        diag.jmp = NULL;
+        return false;
+    }
+    for (int k = 0; k < c->nics; k++) {
+        const IcSpec *ic = &c->ics[k];
+        if (ic->node > 0 && !set[2 * (ic->node - 1) + (ic->fn == 'x')])
+            error_at(ic->pos, "initial condition %c(%s) sets nothing: %s", ic->fn, c->nodes[ic->node],
+                     ic_needs(ic->fn, c->nodes[ic->node]));
+    }
+    for (int e = 0; rd && e < rd->nev; e++)
+        for (int k = 0; k < rd->ev[e].nic; k++) {
+            int full = rd->ev[e].ids[k], nd = full / 2 + 1;
+            char fn = full % 2 ? 'x' : 'v';
+            if (id[full] < 0)
+                error_at(rd->ev[e].at[k], "strike target %c(%s) sets nothing: %s", fn, c->nodes[nd],
+                         ic_needs(fn, c->nodes[nd]));
+            rd->ev[e].ids[k] = id[full];
+        }
+    diag.jmp = NULL;
+    return true;
 }
 
 /* wdf_build and scatter_check, netlist errors unwinding to here: NULL. */
@@ -714,7 +760,7 @@ int main(int argc, char **argv) {
     if (o.render) /* what the user gave is checked before any compiling */
         render_prepare(&o, c, fs, &rd);
     Wdf *w = structure(c, fs);
-    if (!w)
+    if (!w || !settable_ids(w, o.render ? &rd : NULL))
         return EXIT_NETLIST;
     if (o.dump_wdf)
         wdf_dump(w, stdout);

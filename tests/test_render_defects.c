@@ -153,6 +153,46 @@ static void test_event_diagnostics(void **s) {
     assert_int_equal(wdc(format("netlists/msd.wdn --render %s/x.wav --seconds 0.01 --events %s", dir, ev)), 0);
 }
 
+/* A strike target, or a netlist's .ic, that sets nothing is an error at
+ * its place, with what it would need, before the C compiler runs; the
+ * voice lists only the targets it can set. */
+static void test_targets_that_set_nothing(void **s) {
+    (void)s;
+    const char *ev = tl_write_file(dir, "nothing.events", "0.1 ic v(out)=0.5\n0.2 ic  v(out)=1 x(out)=1\n");
+    assert_int_equal(tl_system(format("CC=false bin/wdc netlists/rc_lowpass.wdn --render %s/x.wav --events %s "
+                                      "2>%s/err.txt", dir, ev, dir)), 1);
+    assert_string_equal(err_text(), format("%s:2:18: error: strike target x(out) sets nothing: no inductor (spring) "
+                                           "joins 'out' to ground, and no contact or displacement probe is at it\n"
+                                           "  0.2 ic  v(out)=1 x(out)=1\n                   ^\n", ev));
+    ev = tl_write_file(dir, "source.events", "0.1 ic v(in)=1\n");
+    assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --events %s", dir, ev)), 1);
+    assert_err_has(format("%s:1:8: error: strike target v(in) sets nothing: no capacitor (mass) joins 'in' to ground",
+                          ev));
+    /* what sets something renders */
+    ev = tl_write_file(dir, "good.events", "0.01 ic v(out)=0.5\n");
+    assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --seconds 0.02 --events %s", dir, ev)), 0);
+    const char *net = tl_write_file(dir, "icsrc.wdn", ".voice icsrc\n.input u\nV1 a 0 u\nR1 a b 1k\nC1 b 0 1u\n"
+                                                      ".ic v(b)=1 v(a)=1\n.output y v(b)\n.end\n");
+    assert_int_equal(wdc(format("%s --check", net)), 1);
+    assert_err_has(format("%s:6:12: error: initial condition v(a) sets nothing: no capacitor (mass) joins 'a' to "
+                          "ground", net));
+    /* the voice's targets: v(out) alone */
+    tl_voice v;
+    assert_int_equal(tl_voice_build("netlists/rc_lowpass.wdn", 0, &v), 0);
+    assert_int_equal(v.cls->n_ic_targets, 1);
+    assert_string_equal(v.cls->ic_targets[0].name, "v(out)");
+    void *st = tl_state_new(v.cls, 48000);
+    int ids[2] = {0, 1};
+    double vals[2] = {0.25, 1};
+    assert_int_equal(v.cls->set_ic(st, 2, ids, vals), -1); /* one id past the list: nothing taken */
+    double e0 = v.cls->energy(st);
+    assert_true(e0 == 0);
+    assert_int_equal(v.cls->set_ic(st, 1, ids, vals), 0);
+    assert_true(v.cls->energy(st) > 0);
+    tl_state_free(st);
+    tl_voice_free(&v);
+}
+
 /* A bad events file fails before the C compiler runs: with CC=false the
  * status is the events file's 1, not the toolchain's 3. */
 static void test_events_fail_fast(void **s) {
@@ -205,7 +245,7 @@ int main(void) {
         cmocka_unit_test(test_seconds_limit),      cmocka_unit_test(test_allocation_failure),
         cmocka_unit_test(test_event_times),        cmocka_unit_test(test_input_specs),
         cmocka_unit_test(test_event_values),       cmocka_unit_test(test_nonfinite_output),
-        cmocka_unit_test(test_event_diagnostics),  cmocka_unit_test(test_events_fail_fast),
+        cmocka_unit_test(test_event_diagnostics),  cmocka_unit_test(test_events_fail_fast), cmocka_unit_test(test_targets_that_set_nothing),
         cmocka_unit_test(test_concurrent_renders), cmocka_unit_test(test_render_keeps_outdir),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
