@@ -2847,6 +2847,87 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
     return format("    if (st->dirty)\n        update(st%s);\n", uf ? ", 0" : "");
 }
 
+/* Occurrences of `ref` (say "c_k[3]") in text. */
+static int count_ref(const char *text, const char *ref) {
+    int n = 0;
+    size_t len = strlen(ref);
+    for (const char *q = text; (q = strstr(q, ref)); q += len)
+        n += q == text || !ident_char(q[-1]);
+    return n;
+}
+
+/* True if text indexes `name` (c_R or c_k) other than by a number, as the
+ * general root solve's tables do. */
+static bool indexed(const char *text, const char *name) {
+    size_t len = strlen(name);
+    for (const char *q = text; (q = strstr(q, name)); q += len)
+        if (q[len] == '[' && !(q[len + 1] >= '0' && q[len + 1] <= '9'))
+            return true;
+    return false;
+}
+
+/* update's body without the adaptor coefficients nothing reads: a
+ * scattering coefficient (c_k) or an adaptor's own port resistance (c_R)
+ * that neither the rest of the voice (`rest`) nor another kept line of
+ * update names is not computed, and an adaptor left with nothing to
+ * store goes whole.  Coefficients that some code reads by computed index
+ * all stay. */
+static const char *prune_update(const char *body, const char *rest) {
+    bool keepR = indexed(rest, "c_R"), keepK = indexed(rest, "c_k");
+    int n = 0;
+    for (const char *q = body; *q; q++)
+        n += *q == '\n';
+    const char **line = arena_alloc(sizeof(char *) * (size_t)(n + 1));
+    const char **ref = arena_alloc(sizeof(char *) * (size_t)(n + 1)); /* the coefficient a removable line stores */
+    int *block = arena_alloc(sizeof(int) * (size_t)(n + 1));          /* the adaptor block a line is in, or -1 */
+    bool *gone = arena_alloc(sizeof(bool) * (size_t)(n + 1));
+    int nb = 0, cur = -1;
+    n = 0;
+    for (const char *q = body; *q;) {
+        const char *e = strchr(q, '\n');
+        size_t len = e ? (size_t)(e - q) + 1 : strlen(q);
+        const char *l = format("%.*s", (int)len, q);
+        q += len;
+        if (strstr(l, "adaptor */\n") && strstr(l, "{ /*"))
+            cur = nb++;
+        block[n] = cur;
+        int k;
+        if (cur >= 0 && !keepK && sscanf(l, "        st->c_k[%d] = ", &k) == 1)
+            ref[n] = format("c_k[%d]", k);
+        else if (cur >= 0 && !keepR && sscanf(l, "        st->c_R[%d] = ", &k) == 1 &&
+                 (strstr(l, "= (real)(t);") || strstr(l, "= (real)(1.0 / t);")))
+            ref[n] = format("c_R[%d]", k);
+        if (cur >= 0 && !strcmp(l, "    }\n"))
+            cur = -1;
+        line[n++] = l;
+    }
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (int i = 0; i < n; i++) {
+            if (!ref[i] || gone[i])
+                continue;
+            int reads = count_ref(rest, ref[i]);
+            for (int j = 0; j < n && !reads; j++)
+                if (j != i && !gone[j])
+                    reads += count_ref(line[j], ref[i]);
+            if (!reads)
+                gone[i] = changed = true;
+        }
+    }
+    for (int b = 0; b < nb; b++) { /* an adaptor that stores nothing now */
+        bool stores = false;
+        for (int i = 0; i < n; i++)
+            stores |= block[i] == b && !gone[i] && strstr(line[i], "st->c_");
+        for (int i = 0; i < n && !stores; i++)
+            gone[i] |= block[i] == b;
+    }
+    Buf out = {0};
+    for (int i = 0; i < n; i++)
+        if (!gone[i])
+            emit(&out, "%s", line[i]);
+    return str(&out);
+}
+
 /* ---- lanes: process for many instances at once ---- */
 
 /* Every identifier of C text that `lane` holds becomes t_ln.NAME[l], lane
@@ -3550,38 +3631,50 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     Buf dtext = {0}, dptrs = {0};
     emit_descriptors(&x, str(&targets), &dtext, &dptrs);
     Holes t = {0};
-    const char *dirty = update_holes(&x, &t, str(&update));
-    process_holes(&x, &t, dirty);
-    reset_holes(&x, &t, dirty, str(&reset), str(&kirch), str(&cases));
-    measure_holes(&x, &t, str(&energy));
-    solve_holes(&x, &t, str(&force), str(&retune), str(&probes), nicv);
-    const Hole fixed[] = {
-        {"name", c->name}, {"version", WDC_VERSION}, {"source", c->path}, {"hash", format("%08x", c->hash)},
-        {"options", options}, {"summary", summary}, {"guard", guard}, {"real", real},
-        {"precision", opt->single ? "32" : "64"}, {"state_fields", state_fields(&x, nd)},
-        {"n_params", format("%d", c->nparams)}, {"n_inputs", format("%d", c->ninputs)},
-        {"n_outputs", format("%d", c->nouts)}, {"n_ic_targets", format("%d", x.nic)},
-        {"descriptors", str(&dtext)}, {"descriptor_ptrs", str(&dptrs)}, {"root_edges", rtab},
-        {"root_desc", str(&rdesc)}, {"ic_elems", ictab}, {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)},
-        {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"wg_fields", wg_fields(c)},
-        {"design", design_entries(c)}, {"flush_below", opt->single ? "1e-18f" : "1e-30"},
-    };
-    for (int i = 0; i < (int)(sizeof fixed / sizeof fixed[0]); i++)
-        set(&t, fixed[i].name, fixed[i].text);
-    Buf solve = {0};
-    bool general = false;
-    for (int b = 0; b < w->nroots; b++) {
-        general |= !x.rfn[b];
-        if (x.rfn[b] && *x.rfn[b])
-            emit(&solve, "\n%s", fill_with(x.rfn[b], &t));
+    const char *ubody = str(&update), *bare;
+    /* twice if update computes what nothing reads: the second time
+     * without it (prune_update, reading the voice the first made) */
+    for (int pass = 0;; pass++) {
+        t.n = 0;
+        const char *dirty = update_holes(&x, &t, ubody);
+        process_holes(&x, &t, dirty);
+        reset_holes(&x, &t, dirty, str(&reset), str(&kirch), str(&cases));
+        measure_holes(&x, &t, str(&energy));
+        solve_holes(&x, &t, str(&force), str(&retune), str(&probes), nicv);
+        const Hole fixed[] = {
+            {"name", c->name}, {"version", WDC_VERSION}, {"source", c->path}, {"hash", format("%08x", c->hash)},
+            {"options", options}, {"summary", summary}, {"guard", guard}, {"real", real},
+            {"precision", opt->single ? "32" : "64"}, {"state_fields", state_fields(&x, nd)},
+            {"n_params", format("%d", c->nparams)}, {"n_inputs", format("%d", c->ninputs)},
+            {"n_outputs", format("%d", c->nouts)}, {"n_ic_targets", format("%d", x.nic)},
+            {"descriptors", str(&dtext)}, {"descriptor_ptrs", str(&dptrs)}, {"root_edges", rtab},
+            {"root_desc", str(&rdesc)}, {"ic_elems", ictab}, {"n_icn", format("%d", nicn)}, {"n_icv", format("%d", nicv)},
+            {"nl_kernels", str(&kernels)}, {"nl_tables", str(&tables)}, {"wg_fields", wg_fields(c)},
+            {"design", design_entries(c)}, {"flush_below", opt->single ? "1e-18f" : "1e-30"},
+        };
+        for (int i = 0; i < (int)(sizeof fixed / sizeof fixed[0]); i++)
+            set(&t, fixed[i].name, fixed[i].text);
+        Buf solve = {0};
+        bool general = false;
+        for (int b = 0; b < w->nroots; b++) {
+            general |= !x.rfn[b];
+            if (x.rfn[b] && *x.rfn[b])
+                emit(&solve, "\n%s", fill_with(x.rfn[b], &t));
+        }
+        set(&t, "solve", format("%s%s", general ? fill_with(tmpl_root, &t) : "", str(&solve)));
+        set(&t, "settle", format("%s%s", x.dcop ? x.dcop : "", fast ? fast : x.settle ? fill_with(tmpl_settle, &t) : ""));
+        /* the helpers the rest of the voice names */
+        set(&t, "wg_kernels", "");
+        set(&t, "helpers", "");
+        set(&t, "codes", "");
+        bare = fill_with(tmpl_voice_c, &t);
+        const char *at = pass ? NULL : strstr(bare, ubody), *pruned = ubody;
+        if (at)
+            pruned = prune_update(ubody, format("%.*s%s%s", (int)(at - bare), bare, at + strlen(ubody), str(&wgk)));
+        if (!strcmp(pruned, ubody))
+            break;
+        ubody = pruned;
     }
-    set(&t, "solve", format("%s%s", general ? fill_with(tmpl_root, &t) : "", str(&solve)));
-    set(&t, "settle", format("%s%s", x.dcop ? x.dcop : "", fast ? fast : x.settle ? fill_with(tmpl_settle, &t) : ""));
-    /* the helpers the rest of the voice names */
-    set(&t, "wg_kernels", "");
-    set(&t, "helpers", "");
-    set(&t, "codes", "");
-    const char *bare = fill_with(tmpl_voice_c, &t);
     t.n -= 3;
     set(&t, "wg_kernels", str(&wgk));
     set(&t, "helpers", helpers(bare, str(&wgk)));
