@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 6
+#define WDV_ABI_VERSION 7
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -45,7 +45,10 @@ typedef struct wdv_param {
 #define WDV_PARAM_DESIGN 2u
 
 /* One initial-condition target: the velocity (or voltage) of a node, or
- * the displacement (or flux) of a node relative to ground. */
+ * the displacement (or flux) of a node relative to ground.  A voice lists
+ * only the targets that set something: v(node) of a node with a capacitor
+ * (mass) to ground; x(node) of one with an inductor (spring) to ground, a
+ * contact, or a displacement probe. */
 typedef struct wdv_ic_target {
     const char *name; /* "v(node)" or "x(node)" */
     const char *unit;
@@ -92,7 +95,8 @@ typedef struct wdv_class {
     /* A strike: sets the named initial conditions (ids into ic_targets)
      * on top of the present state; reactances the targets do not touch keep
      * their Kirchhoff state.  Returns 0, or -1 if an id is out of range or
-     * the conditions cannot all hold.  Real-time safe (bounded solve). */
+     * a value not a number (checked before anything is set) or the
+     * conditions cannot all hold.  Real-time safe (bounded solve). */
     int (*set_ic)(void *state, int n, const int *ids, const double *values);
 
     /* The heavy part of a param change (the design of a waveguide's loop
