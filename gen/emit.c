@@ -3094,7 +3094,11 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     bool *skeep = live_keep(x->stmt, x->nstmt, &live);
     bool *keep = kept_locals(x, &live);
     Names lane = {0};
-    LaneVar *var = arena_alloc(sizeof(LaneVar) * (size_t)(x->nloc + 4 * x->nstmt + 4 * x->c->nouts + 8));
+    size_t nlines = 0; /* at most a lane member per line of the statements, and two per diode */
+    for (int i = 0; i < x->nstmt; i++)
+        for (const char *q = x->stmt[i].text; *q; q++)
+            nlines += *q == '\n';
+    LaneVar *var = arena_alloc(sizeof(LaneVar) * ((size_t)x->nloc + 2 * nlines + 2 * (size_t)x->c->nouts + 8));
     int nvar = 0;
     Buf fix = {0}, load = {0}, wb = {0}, fl = {0};
     for (int i = 0; i < x->nloc; i++) {

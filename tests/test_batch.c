@@ -17,7 +17,9 @@
  * as bits: the lanes compute what process computes, in the same order),
  * and so must every instance's energy() at the end (and work(), for
  * voices built with --energy).  A batch of one instance and a batch of
- * none are run too.
+ * none are run too.  The voices whose diodes diode_fast solves run again
+ * driven past its tables (inputs up to 3 kV) and built with --tol 1e-12,
+ * where fast_lane leaves lanes to diode_fast.
  */
 #include <setjmp.h>
 #include <stdarg.h>
