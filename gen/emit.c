@@ -2917,7 +2917,7 @@ static const char *prune_update(const char *body, const char *rest) {
     for (int b = 0; b < nb; b++) { /* an adaptor that stores nothing now */
         bool stores = false;
         for (int i = 0; i < n; i++)
-            stores |= block[i] == b && !gone[i] && strstr(line[i], "st->c_");
+            stores |= block[i] == b && !gone[i] && !strncmp(line[i], "        st->", 12);
         for (int i = 0; i < n && !stores; i++)
             gone[i] |= block[i] == b;
     }
