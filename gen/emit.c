@@ -2928,6 +2928,30 @@ static const char *prune_update(const char *body, const char *rest) {
     return str(&out);
 }
 
+/* The state's fields (lines of state_fields) that the voice's text names:
+ * a field nothing reads or writes (a root matrix folded into constants,
+ * say) takes no room. */
+static const char *used_fields(const char *fields, const char *text) {
+    Buf b = {0};
+    for (const char *q = fields; *q;) {
+        const char *e = strchr(q, '\n');
+        size_t len = e ? (size_t)(e - q) + 1 : strlen(q);
+        const char *l = format("%.*s", (int)len, q), *name = NULL;
+        q += len;
+        for (const char *r = l; *r && *r != '/'; r++) /* the identifier before '[' or ';' */
+            if (ident_char(*r) && (r == l || !ident_char(r[-1]))) {
+                const char *t = r;
+                while (ident_char(*t))
+                    t++;
+                if (*t == '[' || *t == ';')
+                    name = format("%.*s", (int)(t - r), r);
+            }
+        if (!name || uses(text, name))
+            emit(&b, "%s", l);
+    }
+    return str(&b);
+}
+
 /* ---- lanes: process for many instances at once ---- */
 
 /* Every identifier of C text that `lane` holds becomes t_ln.NAME[l], lane
@@ -3684,6 +3708,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     set(&t, "helpers", helpers(bare, str(&wgk)));
     set(&t, "codes", codes(format("%s%s", bare, str(&wgk))));
     const char *ctext = one_blank(fill_with(tmpl_voice_c, &t));
+    set(&t, "state_fields", used_fields(state_fields(&x, nd), ctext));
     const char *htext = one_blank(fill_with(tmpl_voice_h, &t));
     if (write_text(format("%s/%s.c", opt->outdir, c->name), ctext) ||
         write_text(format("%s/%s.h", opt->outdir, c->name), htext) ||
