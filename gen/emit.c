@@ -571,13 +571,11 @@ static void emit_waveguides(Ctx *x) {
             const char *sg = g->term[e] == 'c' ? "" : "-";
             /* one flush in the loop: at end b, through which every wave
              * passes once a round trip, or at end a where end b is joined */
-            if (e == 0 && !g->end[1])
-                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = %ss_wv[%d + ((t_pos - k_wNL%d) & %du)]; /* end a */\n", R,
-                    m, sg, L, w, m);
-            else if (e == 0)
-                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = flush(%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]); /* end a */\n",
-                    R, m, sg, L, w, m);
-            else
+            if (e == 0) {
+                const char *wave = format("%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]", sg, L, w, m);
+                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = %s; /* end a */\n", R, m,
+                    g->end[1] ? format("flush(%s)", wave) : wave);
+            } else
                 put(x, NULL, "        s_wv[%d + (t_pos & %du)] = flush(%st_wb%d); /* end b */\n", L, m, sg, w);
         }
     }
