@@ -6,6 +6,7 @@
  * pass computing the waves each subtree reflects towards the root, the
  * root's matrix, and a backward pass sending waves down to the leaves. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "gen.h"
@@ -2926,6 +2927,107 @@ static const char *prune_update(const char *body, const char *rest) {
     return str(&out);
 }
 
+/* One identifier token of C text at s (s not inside another): its end. */
+static const char *ident_end(const char *s) {
+    while (ident_char(*s))
+        s++;
+    return s;
+}
+
+/* Renumbers the slots of a coefficient array NAME[N] that C text names
+ * only as NAME[digits]: map[i] is slot i's new index, or -1 if unused.
+ * Hoisted copies named NAME<digits> follow the same map. */
+static const char *renumber(const char *text, const char *name, const int *map, int n, bool rename) {
+    Buf b = {0};
+    size_t nl = strlen(name);
+    for (const char *s = text; *s;) {
+        if (!ident_char(*s) || (s > text && ident_char(s[-1]))) {
+            emit(&b, "%c", *s++);
+            continue;
+        }
+        const char *e = ident_end(s);
+        if ((size_t)(e - s) >= nl && !strncmp(s, name, nl)) {
+            const char *d = s + nl;
+            int i = 0;
+            bool digits = d < e;
+            for (const char *q = d; q < e; q++)
+                digits &= *q >= '0' && *q <= '9';
+            if (d == e && *e == '[') { /* NAME[i] */
+                i = atoi(e + 1);
+                const char *r = e + 1;
+                while (*r >= '0' && *r <= '9')
+                    r++;
+                emit(&b, "%s[%d", name, i < n && map[i] >= 0 ? map[i] : i);
+                s = r;
+                continue;
+            }
+            if (rename && digits && (i = atoi(d)) < n && map[i] >= 0) { /* NAME<i>: a hoisted copy */
+                emit(&b, "%s%d", name, map[i]);
+                s = e;
+                continue;
+            }
+        }
+        emit(&b, "%.*s", (int)(e - s), s);
+        s = e;
+    }
+    return str(&b);
+}
+
+/* Coefficient arrays (c_*) that the voice names only by constant index
+ * keep just the slots it names, renumbered in order: pruning leaves holes
+ * (a coefficient nothing reads, a root matrix folded into constants) that
+ * would otherwise take room in every instance.  *text and *fields (lines
+ * of state_fields) are rewritten together; an array named any other way
+ * (by a computed index, a pointer, sizeof) is left whole. */
+static void dense_slots(const char **text, const char **fields) {
+    Buf out = {0};
+    for (const char *q = *fields; *q;) {
+        const char *e = strchr(q, '\n');
+        size_t len = e ? (size_t)(e - q) + 1 : strlen(q);
+        const char *l = format("%.*s", (int)len, q);
+        q += len;
+        char type[128], name[64];
+        int n = 0, at = 0;
+        const char *what = strstr(l, "/* ");
+        if (sscanf(l, " %127s %63[A-Za-z0-9_][%d];%n", type, name, &n, &at) != 3 || strncmp(name, "c_", 2) || !what ||
+            n <= 0) {
+            emit(&out, "%s", l);
+            continue;
+        }
+        bool *used = arena_alloc(sizeof(bool) * (size_t)n), plain = true, hoisted = true;
+        size_t nl = strlen(name);
+        for (const char *s = *text; *s && plain;) {
+            if (!ident_char(*s) || (s > *text && ident_char(s[-1]))) {
+                s++;
+                continue;
+            }
+            const char *t = ident_end(s);
+            if ((size_t)(t - s) == nl && !strncmp(s, name, nl)) {
+                char *r = NULL;
+                long i = *t == '[' && t[1] >= '0' && t[1] <= '9' ? strtol(t + 1, &r, 10) : -1;
+                plain = i >= 0 && i < n && *r == ']';
+                if (plain)
+                    used[i] = true;
+            } else if ((size_t)(t - s) > nl && !strncmp(s, name, nl) && s[nl] >= '0' && s[nl] <= '9') {
+                /* a hoisted copy keeps its slot's number only if that is what it copies */
+                const char *tok = format("%.*s", (int)(t - s), s), *slot = format("st->%s[%s];", name, tok + nl);
+                hoisted &= strstr(*text, format("%s = %s", tok, slot)) || strstr(*text, format("%s[l] = %s", tok, slot));
+            }
+            s = t;
+        }
+        int *map = arena_alloc(sizeof(int) * (size_t)n), m = 0;
+        for (int i = 0; i < n; i++)
+            map[i] = used[i] ? m++ : -1;
+        if (!plain || m == n || m == 0) {
+            emit(&out, "%s", l);
+            continue;
+        }
+        *text = renumber(*text, name, map, n, hoisted);
+        emit(&out, "    %-26s %s", format("%s %s[%d];", type, name, m), what);
+    }
+    *fields = str(&out);
+}
+
 /* The state's fields (lines of state_fields) that the voice's text names:
  * a field nothing reads or writes (a root matrix folded into constants,
  * say) takes no room. */
@@ -3706,7 +3808,9 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     set(&t, "helpers", helpers(bare, str(&wgk)));
     set(&t, "codes", codes(format("%s%s", bare, str(&wgk))));
     const char *ctext = one_blank(fill_with(tmpl_voice_c, &t));
-    set(&t, "state_fields", used_fields(state_fields(&x, nd), ctext));
+    const char *fields = used_fields(state_fields(&x, nd), ctext);
+    dense_slots(&ctext, &fields);
+    set(&t, "state_fields", fields);
     const char *htext = one_blank(fill_with(tmpl_voice_h, &t));
     if (write_text(format("%s/%s.c", opt->outdir, c->name), ctext) ||
         write_text(format("%s/%s.h", opt->outdir, c->name), htext) ||

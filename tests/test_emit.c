@@ -19,7 +19,10 @@
  *  - NAME.c includes only <math.h>, <string.h> and the voice's own
  *    headers ("NAME.h", "wdvoice.h"); NAME.h only "wdvoice.h";
  *  - NAME.h declares `extern const wdv_class NAME_class` and NAME.c
- *    defines it.
+ *    defines it;
+ *  - the state keeps no slot the code never names: each coefficient
+ *    array (c_*) that the code indexes by constants only has every slot
+ *    named.
  *
  * A voice must never allocate, lock or do I/O (wdvoice.h).  Rather than
  * hooking malloc while process runs, the test reads the symbol table of
@@ -434,6 +437,43 @@ static void compile_and_check(Ctx *x, const char *cc, const char *prec) {
     free(defs);
 }
 
+static int ident(char ch) { return isalnum((unsigned char)ch) || ch == '_'; }
+
+/* The state holds no slot its code never names: every array of
+ * coefficients (c_*) in the header that the code names only as
+ * NAME[digits] has each of its slots named.  Returns the problems. */
+static int check_slots(const char *file, const char *h, const char *c) {
+    int problems = 0;
+    for (const char *p = h; (p = strstr(p, " c_")) != NULL; p++) {
+        char name[64];
+        int n, len;
+        if (sscanf(p + 1, "%63[A-Za-z0-9_][%d];%n", name, &n, &len) != 2 || n <= 0 || n > 100000)
+            continue;
+        size_t nl = strlen(name);
+        char *named = calloc((size_t)n, 1);
+        int plain = 1;
+        for (const char *q = c; plain && (q = strstr(q, name)) != NULL; q += nl) {
+            if ((q > c && ident(q[-1])) || ident(q[nl]))
+                continue;
+            char *end;
+            long i = q[nl] == '[' && isdigit((unsigned char)q[nl + 1]) ? strtol(q + nl + 1, &end, 10) : -1;
+            if (i < 0 || i >= n || *end != ']')
+                plain = 0; /* named another way: a computed index, a pointer */
+            else
+                named[i] = 1;
+        }
+        for (int i = 0; plain && i < n; i++)
+            if (!named[i]) {
+                print_error("%s: slot %d of %s[%d] is never named: the state keeps room nothing uses\n", file, i,
+                            name, n);
+                problems++;
+                break;
+            }
+        free(named);
+    }
+    return problems;
+}
+
 static void check_emitted_text(Ctx *x) {
     char csrc[1024], hdr[1024], wdv[1024];
     file_in(x, csrc, sizeof csrc, ".c");
@@ -455,6 +495,7 @@ static void check_emitted_text(Ctx *x) {
     x->problems += check_text(csrc, c, c_allowed);
     x->problems += check_text(hdr, h, h_allowed);
     x->problems += check_text(wdv, v, v_allowed);
+    x->problems += check_slots(hdr, h, c);
     char *code = code_only(c);
     if (code && strstr(code, "(void)")) {
         print_error("%s: casts to (void): a voice carries only what it uses\n", csrc);
@@ -613,6 +654,10 @@ static void test_checkers_can_fail(void **state) {
     assert_true(check_symbols("bad.o", "                 U printf@GLIBC_2.2.5\n", "0000 R v_class\n", "v") > 0);
     assert_true(check_symbols("bad.o", "", "0000 T helper\n0000 R v_class\n", "v") > 0);
     assert_true(check_symbols("bad.o", "", "0000 R w_class\n", "v") > 0);
+    /* a slot nothing names is found; an array indexed by computation is left alone */
+    const char *hdr = "    real c_k[3];    /* adaptor coefficients */\n    real c_M[2];\n";
+    assert_int_equal(check_slots("ok.h", hdr, "x = st->c_k[0] + st->c_k[1] + st->c_k[2]; y = st->c_M[i];"), 0);
+    assert_true(check_slots("bad.h", hdr, "x = st->c_k[0] + st->c_k[2]; y = st->c_M[i];") > 0);
     quiet = 0;
 }
 
