@@ -150,6 +150,16 @@ typedef struct Local {
     const char *name, *decl, *wb, *fl;
 } Local;
 
+/* A statement of update(), the control-rate code, in order: its lines
+ * (a guard included), the coefficient slot it stores ("c_k[3]", NULL for
+ * none) and the adaptor it belongs to (-1: none).  A coefficient nothing
+ * reads is not computed, and an adaptor left storing nothing goes whole
+ * (prune_update). */
+typedef struct Upd {
+    const char *text, *store;
+    int block;
+} Upd;
+
 typedef struct Ctx {
     const Wdf *w;
     const Circuit *c;
@@ -159,6 +169,8 @@ typedef struct Ctx {
     bool flushes;    /* process flushes tiny states, every FLUSH_RUN samples counted across calls */
     Stmt *stmt;      /* the sample loop, in order */
     int nstmt, capstmt;
+    Upd *upd;        /* update(), in order */
+    int nupd, capupd;
     Local *loc;      /* the locals of process, in order */
     int nloc, caploc;
     int *react;      /* tree node -> reactance index or -1 */
@@ -223,6 +235,18 @@ typedef struct Ctx {
     const char *dcop; /* a deck's DC operating point (dcop_static), or NULL */
 } Ctx;
 
+/* Room for one more in an arena array of n items of `size` bytes whose
+ * capacity is *cap: the array, moved to a larger one when full. */
+static void *grow(void *a, int n, int *cap, size_t size) {
+    if (n < *cap)
+        return a;
+    *cap = *cap ? 2 * *cap : 64;
+    void *b = arena_alloc(size * (size_t)*cap);
+    if (n)
+        memcpy(b, a, size * (size_t)n);
+    return b;
+}
+
 /* A statement of the sample loop defining `def` (NULL: a store). */
 static void put(Ctx *x, const char *def, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 static void put(Ctx *x, const char *def, const char *fmt, ...) {
@@ -231,26 +255,27 @@ static void put(Ctx *x, const char *def, const char *fmt, ...) {
     va_start(ap, fmt);
     buf_vadd(&b, fmt, ap);
     va_end(ap);
-    if (x->nstmt == x->capstmt) {
-        x->capstmt = x->capstmt ? 2 * x->capstmt : 64;
-        Stmt *n = arena_alloc(sizeof(Stmt) * (size_t)x->capstmt);
-        if (x->nstmt)
-            memcpy(n, x->stmt, sizeof(Stmt) * (size_t)x->nstmt);
-        x->stmt = n;
-    }
+    x->stmt = grow(x->stmt, x->nstmt, &x->capstmt, sizeof(Stmt));
     x->stmt[x->nstmt++] = (Stmt){def, str(&b), x->own, x->phase};
+}
+
+/* A statement of update() storing `store` (NULL: none) in adaptor block
+ * `block` (-1: none). */
+static void upd(Ctx *x, int block, const char *store, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
+static void upd(Ctx *x, int block, const char *store, const char *fmt, ...) {
+    Buf b = {0};
+    va_list ap;
+    va_start(ap, fmt);
+    buf_vadd(&b, fmt, ap);
+    va_end(ap);
+    x->upd = grow(x->upd, x->nupd, &x->capupd, sizeof(Upd));
+    x->upd[x->nupd++] = (Upd){str(&b), store, block};
 }
 
 /* A local of process named `name` (NULL: always there), its declaration,
  * write-back and flush (each NULL: none). */
 static void local(Ctx *x, const char *name, const char *decl, const char *wb, const char *fl) {
-    if (x->nloc == x->caploc) {
-        x->caploc = x->caploc ? 2 * x->caploc : 64;
-        Local *n = arena_alloc(sizeof(Local) * (size_t)x->caploc);
-        if (x->nloc)
-            memcpy(n, x->loc, sizeof(Local) * (size_t)x->nloc);
-        x->loc = n;
-    }
+    x->loc = grow(x->loc, x->nloc, &x->caploc, sizeof(Local));
     x->loc[x->nloc++] = (Local){name, decl ? decl : "", wb ? wb : "", fl ? fl : ""};
 }
 
@@ -397,42 +422,47 @@ static void emit_wg_specs(Ctx *x, Buf *o) {
     emit(o, "    }\n}\n");
 }
 
-static void emit_update(Ctx *x, Buf *o) {
+static void emit_update(Ctx *x) {
+    int nb = 0;
     const Circuit *c = x->c;
     for (int i = 0; i < x->w->nnodes; i++) {
         const WNode *n = x->w->nodes[i];
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
             const char *v = format("pos(%s)", cexpr(x, e->val));
-            emit(o, "    %s /* %s (%s:%d:%d) */\n", guard(n->pmask), e->name, e->pos.file->path,
-                 e->pos.line, e->pos.col);
+            upd(x, -1, NULL, "    %s /* %s (%s:%d:%d) */\n", guard(n->pmask), e->name, e->pos.file->path, e->pos.line,
+                e->pos.col);
             /* a reactance a param moves is retuned; one that none moves
              * is set once, in init, from a cleared state */
             const Prim *pr = &prims[e->kind];
             if (pr->state && n->pmask)
-                emit(o, "        retune(st, %d, %d, %s, %d);\n", n->id, x->react[n->id], prim_port_text(e, v),
-                     pr->state == 'C');
+                upd(x, -1, NULL, "        retune(st, %d, %d, %s, %d);\n", n->id, x->react[n->id], prim_port_text(e, v),
+                    pr->state == 'C');
             else if (pr->state)
-                emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id, prim_port_text(e, v));
+                upd(x, -1, NULL, "        st->c_R[%d] = (real)(%s);\n", n->id, prim_port_text(e, v));
             else
-                emit(o, "        st->c_R[%d] = (real)%s;\n", n->id, prim_port_text(e, v));
+                upd(x, -1, NULL, "        st->c_R[%d] = (real)%s;\n", n->id, prim_port_text(e, v));
             continue;
         }
-        emit(o, "    %s { /* %s adaptor */\n", guard(n->pmask), n->kind == W_SERIES ? "series" : "parallel");
+        const int blk = nb++;
+        upd(x, blk, NULL, "    %s { /* %s adaptor */\n", guard(n->pmask), n->kind == W_SERIES ? "series" : "parallel");
         /* the sum of resistances (conductances) in child order: one
          * expression for a few, else a running sum */
         Buf sum = {0};
         for (int k = 0; k < n->nchild; k++)
-            emit(&sum, n->kind == W_SERIES ? (n->nchild <= 4 ? "%s%s" : "        t += %s%s;\n")
-                                           : (n->nchild <= 4 ? "%s1.0 / %s" : "        t += 1.0 / %s%s;\n"),
+            emit(&sum,
+                 n->kind == W_SERIES ? (n->nchild <= 4 ? "%s%s" : "        t += %s%s;\n")
+                                     : (n->nchild <= 4 ? "%s1.0 / %s" : "        t += 1.0 / %s%s;\n"),
                  n->nchild <= 4 && k ? " + " : "", dbl(x, format("st->c_R[%d]", n->child[k]->id)));
-        emit(o, n->nchild <= 4 ? "        const double t = %s;\n" : "        double t = 0;\n%s", str(&sum));
-        emit(o, "        st->c_R[%d] = (real)(%s);\n", n->id, n->kind == W_SERIES ? "t" : "1.0 / t");
+        upd(x, blk, NULL, n->nchild <= 4 ? "        const double t = %s;\n" : "        double t = 0;\n%s", str(&sum));
+        upd(x, blk, format("c_R[%d]", n->id), "        st->c_R[%d] = (real)(%s);\n", n->id,
+            n->kind == W_SERIES ? "t" : "1.0 / t");
         for (int k = 0; k < n->nchild; k++)
-            emit(o, n->kind == W_SERIES ? "        st->c_k[%d] = (real)(%s / t);\n"
-                                        : "        st->c_k[%d] = (real)(1.0 / %s / t);\n",
-                 x->koff[n->id] + k, dbl(x, format("st->c_R[%d]", n->child[k]->id)));
-        emit(o, "    }\n");
+            upd(x, blk, format("c_k[%d]", x->koff[n->id] + k),
+                n->kind == W_SERIES ? "        st->c_k[%d] = (real)(%s / t);\n"
+                                    : "        st->c_k[%d] = (real)(1.0 / %s / t);\n",
+                x->koff[n->id] + k, dbl(x, format("st->c_R[%d]", n->child[k]->id)));
+        upd(x, blk, NULL, "    }\n");
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);
@@ -447,42 +477,46 @@ static void emit_update(Ctx *x, Buf *o) {
         for (int j = 0; j < 4; j++) {
             if (!v[j])
                 continue;
-            emit(o, "    %s { /* %s */\n        const double t_new = %s;\n", guard(expr_params(v[j])), e->name,
-                 cexpr(x, v[j]));
+            upd(x, -1, NULL, "    %s { /* %s */\n        const double t_new = %s;\n", guard(expr_params(v[j])), e->name,
+                cexpr(x, v[j]));
             /* a contact held compressed keeps its energy from rising: a
              * stiffer felt is compressed less, a smaller gap keeps the
              * compression */
             if (nl->kind == NL_CONTACT && !nl->mutated && (j == 0 || j == 3))
-                emit(o, "        const double t_X = st->s_nX[%d] - st->c_nl[%d], t_old = st->c_nl[%d];\n"
-                        "        if (!full && t_X > 0 && t_old > 0 && t_new %s t_old)\n"
-                        "            st->s_nX[%d] = (real)(%s);\n", k, 4 * k + 3, 4 * k + j, j == 0 ? ">" : "<", k,
-                     j == 0 ? format("%s + t_X * pow(t_old / t_new, 1 / (st->c_nl[%d] + 1))",
-                                     dbl(x, format("st->c_nl[%d]", 4 * k + 3)), 4 * k + 1)
-                            : format("%s + t_new - t_old", dbl(x, format("st->s_nX[%d]", k))));
-            emit(o, "        st->c_nl[%d] = (real)t_new;\n    }\n", 4 * k + j);
+                upd(x, -1, NULL,
+                    "        const double t_X = st->s_nX[%d] - st->c_nl[%d], t_old = st->c_nl[%d];\n"
+                    "        if (!full && t_X > 0 && t_old > 0 && t_new %s t_old)\n"
+                    "            st->s_nX[%d] = (real)(%s);\n",
+                    k, 4 * k + 3, 4 * k + j, j == 0 ? ">" : "<", k,
+                    j == 0 ? format("%s + t_X * pow(t_old / t_new, 1 / (st->c_nl[%d] + 1))",
+                                    dbl(x, format("st->c_nl[%d]", 4 * k + 3)), 4 * k + 1)
+                           : format("%s + t_new - t_old", dbl(x, format("st->s_nX[%d]", k))));
+            upd(x, -1, NULL, "        st->c_nl[%d] = (real)t_new;\n    }\n", 4 * k + j);
         }
     }
     for (int b = 0; b < x->w->nroots; b++) /* fixed: their laws are solved jointly */
         for (int k = 0; k < x->w->roots[b].nnl && x->w->roots[b].joint; k++)
-            emit(o, "    st->c_Rn[%d] = %s;\n", x->nl_first[b] + k, lit(x, joint_R(x, b, x->w->roots[b].nport + k)));
+            upd(x, -1, NULL, "    st->c_Rn[%d] = %s;\n", x->nl_first[b] + k,
+                lit(x, joint_R(x, b, x->w->roots[b].nport + k)));
     for (int b = 0; b < x->w->nroots; b++) {
         if (!x->rfn[b])
-            emit(o, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
+            upd(x, -1, NULL, "    %s\n        root_solve(st, %d);\n", guard(x->w->roots[b].pmask), b);
         else if (*x->rfn[b])
-            emit(o, "    %s\n        root%d_solve(st);\n", guard(x->w->roots[b].pmask), b);
+            upd(x, -1, NULL, "    %s\n        root%d_solve(st);\n", guard(x->w->roots[b].pmask), b);
     }
     for (int k = 0; k < x->nnl; k++) /* diode_fast's constants, from the adapted port and the law */
         if (fast_diode(x, k))
-            emit(o, "    fast_setup(st->c_fk + %d, %s, %s, %s, %d, fast_om);\n", 6 * k, dbl(x, format("st->c_Rn[%d]", k)),
-                 dbl(x, format("st->c_nl[%d]", 4 * k)), dbl(x, format("st->c_nl[%d]", 4 * k + 1)),
-                 nl_elem(x, k)->nl->pair);
+            upd(x, -1, NULL, "    fast_setup(st->c_fk + %d, %s, %s, %s, %d, fast_om);\n", 6 * k,
+                dbl(x, format("st->c_Rn[%d]", k)), dbl(x, format("st->c_nl[%d]", 4 * k)),
+                dbl(x, format("st->c_nl[%d]", 4 * k + 1)), nl_elem(x, k)->nl->pair);
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (e->kind == E_W && e->peer > i) /* one delay per line */
-            emit(o, "    if (full) { /* %s: delay in whole samples */\n"
-                    "        double t_d = floor(%.17g * st->fs + 0.5);\n"
-                    "        st->c_D[%d] = (unsigned)(t_d < 1 ? 1 : t_d > %d ? %d : t_d);\n    }\n",
-                 e->name, e->td, x->line_of[i], x->dl_size[x->line_of[i]] - 1, x->dl_size[x->line_of[i]] - 1);
+            upd(x, -1, NULL,
+                "    if (full) { /* %s: delay in whole samples */\n"
+                "        double t_d = floor(%.17g * st->fs + 0.5);\n"
+                "        st->c_D[%d] = (unsigned)(t_d < 1 ? 1 : t_d > %d ? %d : t_d);\n    }\n",
+                e->name, e->td, x->line_of[i], x->dl_size[x->line_of[i]] - 1, x->dl_size[x->line_of[i]] - 1);
     }
     for (int w = 0; w < c->nwgs; w++) {
         const Waveguide *g = &c->wgs[w];
@@ -492,16 +526,17 @@ static void emit_update(Ctx *x, Buf *o) {
             mask |= expr_params(g->tap_pos[j]);
             emit(&xs, "%s%s", j ? ", " : "", cexpr(x, g->tap_pos[j]));
         }
-        emit(o, "    %s { /* %s (%s:%d:%d) */\n", guard(mask), g->name, g->pos.file->path, g->pos.line, g->pos.col);
-        emit(o, "        wg_spec sp;\n        wg_spec_at(st->fs, %s%d, &sp);\n", wg_params(c) ? "p, " : "", w);
-        emit(o, "        const double x[] = {%s};\n        wg_retune(st, %d, &sp, pos(%s), x);\n    }\n",
-             g->ntaps ? str(&xs) : "0.0", w, cexpr(x, g->Rp));
+        upd(x, -1, NULL, "    %s { /* %s (%s:%d:%d) */\n", guard(mask), g->name, g->pos.file->path, g->pos.line,
+            g->pos.col);
+        upd(x, -1, NULL, "        wg_spec sp;\n        wg_spec_at(st->fs, %s%d, &sp);\n", wg_params(c) ? "p, " : "", w);
+        upd(x, -1, NULL, "        const double x[] = {%s};\n        wg_retune(st, %d, &sp, pos(%s), x);\n    }\n",
+            g->ntaps ? str(&xs) : "0.0", w, cexpr(x, g->Rp));
     }
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (x->src[i] >= 0 && e->input < 0)
-            emit(o, "    %s /* %s */\n        st->c_e[%d] = (real)(%s);\n", guard(expr_params(e->drive)),
-                 e->name, x->src[i], cexpr(x, e->drive));
+            upd(x, -1, NULL, "    %s /* %s */\n        st->c_e[%d] = (real)(%s);\n", guard(expr_params(e->drive)),
+                e->name, x->src[i], cexpr(x, e->drive));
     }
 }
 
@@ -2865,66 +2900,46 @@ static bool indexed(const char *text, const char *name) {
     return false;
 }
 
-/* update's body without the adaptor coefficients nothing reads: a
- * scattering coefficient (c_k) or an adaptor's own port resistance (c_R)
- * that neither the rest of the voice (`rest`) nor another kept line of
- * update names is not computed, and an adaptor left with nothing to
- * store goes whole.  Coefficients that some code reads by computed index
- * all stay. */
-static const char *prune_update(const char *body, const char *rest) {
+/* update()'s text: its statements in order, those gone (if any) left out. */
+static const char *upd_text(const Ctx *x, const bool *gone) {
+    Buf b = {0};
+    for (int i = 0; i < x->nupd; i++)
+        if (!gone || !gone[i])
+            emit(&b, "%s", x->upd[i].text);
+    return str(&b);
+}
+
+/* Marks in gone[] the statements of update() that compute what nothing
+ * reads: a coefficient that neither `rest` (the voice without update's
+ * body) nor a kept statement of update reads, to a fixed point, and then
+ * every adaptor left storing nothing.  Coefficients that some code reads
+ * by computed index (the general root solve's tables) all stay. */
+static void prune_update(const Ctx *x, const char *rest, bool *gone) {
     bool keepR = indexed(rest, "c_R"), keepK = indexed(rest, "c_k");
-    int n = 0;
-    for (const char *q = body; *q; q++)
-        n += *q == '\n';
-    const char **line = arena_alloc(sizeof(char *) * (size_t)(n + 1));
-    const char **ref = arena_alloc(sizeof(char *) * (size_t)(n + 1)); /* the coefficient a removable line stores */
-    int *block = arena_alloc(sizeof(int) * (size_t)(n + 1));          /* the adaptor block a line is in, or -1 */
-    bool *gone = arena_alloc(sizeof(bool) * (size_t)(n + 1));
-    int nb = 0, cur = -1;
-    n = 0;
-    for (const char *q = body; *q;) {
-        const char *e = strchr(q, '\n');
-        size_t len = e ? (size_t)(e - q) + 1 : strlen(q);
-        const char *l = format("%.*s", (int)len, q);
-        q += len;
-        if (strstr(l, "adaptor */\n") && strstr(l, "{ /*"))
-            cur = nb++;
-        block[n] = cur;
-        int k;
-        if (cur >= 0 && !keepK && sscanf(l, "        st->c_k[%d] = ", &k) == 1)
-            ref[n] = format("c_k[%d]", k);
-        else if (cur >= 0 && !keepR && sscanf(l, "        st->c_R[%d] = ", &k) == 1 &&
-                 (strstr(l, "= (real)(t);") || strstr(l, "= (real)(1.0 / t);")))
-            ref[n] = format("c_R[%d]", k);
-        if (cur >= 0 && !strcmp(l, "    }\n"))
-            cur = -1;
-        line[n++] = l;
-    }
+    const Upd *u = x->upd;
+    int n = x->nupd, nb = 0;
     for (bool changed = true; changed;) {
         changed = false;
         for (int i = 0; i < n; i++) {
-            if (!ref[i] || gone[i])
+            if (!u[i].store || gone[i] || (u[i].store[2] == 'R' ? keepR : keepK))
                 continue;
-            int reads = count_ref(rest, ref[i]);
+            int reads = count_ref(rest, u[i].store);
             for (int j = 0; j < n && !reads; j++)
                 if (j != i && !gone[j])
-                    reads += count_ref(line[j], ref[i]);
+                    reads += count_ref(u[j].text, u[i].store);
             if (!reads)
                 gone[i] = changed = true;
         }
     }
+    for (int i = 0; i < n; i++)
+        nb = u[i].block >= nb ? u[i].block + 1 : nb;
     for (int b = 0; b < nb; b++) { /* an adaptor that stores nothing now */
         bool stores = false;
         for (int i = 0; i < n; i++)
-            stores |= block[i] == b && !gone[i] && !strncmp(line[i], "        st->", 12);
+            stores |= u[i].block == b && !gone[i] && u[i].store;
         for (int i = 0; i < n && !stores; i++)
-            gone[i] |= block[i] == b;
+            gone[i] |= u[i].block == b;
     }
-    Buf out = {0};
-    for (int i = 0; i < n; i++)
-        if (!gone[i])
-            emit(&out, "%s", line[i]);
-    return str(&out);
 }
 
 /* One identifier token of C text at s (s not inside another): its end. */
@@ -3699,7 +3714,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     find_idle(&x);
     x.settle = x.nreact || x.nnl || x_probes(c) || (x.energy && x.nsrc);
     x.dcop = dcop_static(&x);
-    Buf update = {0}, reset = {0}, probes = {0}, energy = {0}, kirch = {0}, targets = {0}, cases = {0};
+    Buf reset = {0}, probes = {0}, energy = {0}, kirch = {0}, targets = {0}, cases = {0};
     emit_sample(&x);
     emit_hoist(&x);
     {
@@ -3712,7 +3727,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         print_locals(&x, &live, &d, &wb, &fl);
         root_fns(&x, &live);
     }
-    emit_update(&x, &update);
+    emit_update(&x);
     emit_reset(&x, &reset, &probes);
     emit_energy(&x, &energy, &kirch);
     emit_ic_cases(&x, &targets, &cases);
@@ -3759,7 +3774,8 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     Buf dtext = {0}, dptrs = {0};
     emit_descriptors(&x, str(&targets), &dtext, &dptrs);
     Holes t = {0};
-    const char *ubody = str(&update), *bare;
+    bool *gone = arena_alloc(sizeof(bool) * (size_t)(x.nupd + 1));
+    const char *ubody = upd_text(&x, NULL), *bare;
     /* twice if update computes what nothing reads: the second time
      * without it (prune_update, reading the voice the first made) */
     for (int pass = 0;; pass++) {
@@ -3797,8 +3813,10 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         set(&t, "codes", "");
         bare = fill_with(tmpl_voice_c, &t);
         const char *at = pass ? NULL : strstr(bare, ubody), *pruned = ubody;
-        if (at)
-            pruned = prune_update(ubody, format("%.*s%s%s", (int)(at - bare), bare, at + strlen(ubody), str(&wgk)));
+        if (at) {
+            prune_update(&x, format("%.*s%s%s", (int)(at - bare), bare, at + strlen(ubody), str(&wgk)), gone);
+            pruned = upd_text(&x, gone);
+        }
         if (!strcmp(pruned, ubody))
             break;
         ubody = pruned;
