@@ -2881,15 +2881,6 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
     return format("    if (st->dirty)\n        update(st%s);\n", uf ? ", 0" : "");
 }
 
-/* Occurrences of `ref` (say "c_k[3]") in text. */
-static int count_ref(const char *text, const char *ref) {
-    int n = 0;
-    size_t len = strlen(ref);
-    for (const char *q = text; (q = strstr(q, ref)); q += len)
-        n += q == text || !ident_char(q[-1]);
-    return n;
-}
-
 /* True if text indexes `name` (c_R or c_k) other than by a number, as the
  * general root solve's tables do. */
 static bool indexed(const char *text, const char *name) {
@@ -2909,37 +2900,92 @@ static const char *upd_text(const Ctx *x, const bool *gone) {
     return str(&b);
 }
 
+/* The slots of c_R (as -1 - i) and c_k (as i) that C text names by
+ * number, in order, into *out (arena); their count. */
+static int slot_refs(const char *text, int **out) {
+    int n = 0, cap = 0, *v = NULL;
+    for (const char *q = text; (q = strstr(q, "c_")) != NULL; q += 2) {
+        if ((q > text && ident_char(q[-1])) || (q[2] != 'R' && q[2] != 'k') || q[3] != '[' || !(q[4] >= '0' && q[4] <= '9'))
+            continue;
+        int i = 0;
+        const char *d = q + 4;
+        while (*d >= '0' && *d <= '9' && i < 100000000)
+            i = 10 * i + (*d++ - '0');
+        if (*d != ']')
+            continue;
+        v = grow(v, n, &cap, sizeof(int));
+        v[n++] = q[2] == 'R' ? -1 - i : i;
+    }
+    *out = v;
+    return n;
+}
+
 /* Marks in gone[] the statements of update() that compute what nothing
  * reads: a coefficient that neither `rest` (the voice without update's
  * body) nor a kept statement of update reads, to a fixed point, and then
  * every adaptor left storing nothing.  Coefficients that some code reads
- * by computed index (the general root solve's tables) all stay. */
+ * by computed index (the general root solve's tables) all stay.  Each
+ * slot's readers are counted once, and a statement is looked at again
+ * only when a slot it stores loses a reader, so the work is linear in
+ * the text. */
 static void prune_update(const Ctx *x, const char *rest, bool *gone) {
     bool keepR = indexed(rest, "c_R"), keepK = indexed(rest, "c_k");
     const Upd *u = x->upd;
-    int n = x->nupd, nb = 0;
-    for (bool changed = true; changed;) {
-        changed = false;
-        for (int i = 0; i < n; i++) {
-            if (!u[i].store || gone[i] || (u[i].store[2] == 'R' ? keepR : keepK))
+    int n = x->nupd, nb = 0, nR = x->w->nnodes, nK = x->nk;
+    int *cnt = (int *)arena_alloc(sizeof(int) * (size_t)(nR + nK + 1)) + nR; /* c_R[i] at cnt[-1 - i], c_k[i] at cnt[i] */
+    int *by = (int *)arena_alloc(sizeof(int) * (size_t)(nR + nK + 1)) + nR; /* the statement that stores a slot, or -1 */
+    int **refs = arena_alloc(sizeof(int *) * (size_t)(n + 1)), *nref = arena_alloc(sizeof(int) * (size_t)(n + 1));
+    int *slot = arena_alloc(sizeof(int) * (size_t)(n + 1)), *work = NULL, cap = 0;
+    for (int i = -nR; i < nK; i++)
+        by[i] = -1;
+    int *r, nr = slot_refs(rest, &r);
+    for (int k = 0; k < nr; k++)
+        if (r[k] >= -nR && r[k] < nK)
+            cnt[r[k]]++;
+    int top = 0;
+    for (int i = 0; i < n; i++) {
+        nref[i] = slot_refs(u[i].text, &refs[i]);
+        for (int k = 0; k < nref[i]; k++)
+            if (refs[i][k] >= -nR && refs[i][k] < nK)
+                cnt[refs[i][k]]++;
+        int j = -1 - nR;
+        if (u[i].store && sscanf(u[i].store + 4, "%d", &j) == 1)
+            j = u[i].store[2] == 'R' ? -1 - j : j;
+        slot[i] = j >= -nR && j < nK && !(j < 0 ? keepR : keepK) ? j : -1 - nR;
+        if (slot[i] >= -nR) {
+            by[slot[i]] = i;
+            work = grow(work, top, &cap, sizeof(int));
+            work[top++] = i;
+        }
+    }
+    while (top > 0) {
+        int i = work[--top], own = 0;
+        if (gone[i])
+            continue;
+        for (int k = 0; k < nref[i]; k++)
+            own += refs[i][k] == slot[i];
+        if (cnt[slot[i]] > own) /* read by the rest or by another kept statement */
+            continue;
+        gone[i] = true;
+        for (int k = 0; k < nref[i]; k++) {
+            int j = refs[i][k];
+            if (j < -nR || j >= nK)
                 continue;
-            int reads = count_ref(rest, u[i].store);
-            for (int j = 0; j < n && !reads; j++)
-                if (j != i && !gone[j])
-                    reads += count_ref(u[j].text, u[i].store);
-            if (!reads)
-                gone[i] = changed = true;
+            cnt[j]--;
+            if (by[j] >= 0 && by[j] != i && !gone[by[j]]) {
+                work = grow(work, top, &cap, sizeof(int));
+                work[top++] = by[j];
+            }
         }
     }
     for (int i = 0; i < n; i++)
         nb = u[i].block >= nb ? u[i].block + 1 : nb;
-    for (int b = 0; b < nb; b++) { /* an adaptor that stores nothing now */
-        bool stores = false;
-        for (int i = 0; i < n; i++)
-            stores |= u[i].block == b && !gone[i] && u[i].store;
-        for (int i = 0; i < n && !stores; i++)
-            gone[i] |= u[i].block == b;
-    }
+    bool *stores = arena_alloc(sizeof(bool) * (size_t)(nb + 1));
+    for (int i = 0; i < n; i++) /* an adaptor that stores nothing now goes whole */
+        if (u[i].block >= 0 && u[i].store && !gone[i])
+            stores[u[i].block] = true;
+    for (int i = 0; i < n; i++)
+        gone[i] |= u[i].block >= 0 && !stores[u[i].block];
 }
 
 /* One identifier token of C text at s (s not inside another): its end. */
@@ -3011,6 +3057,7 @@ static void dense_slots(const char **text, const char **fields) {
         }
         bool *used = arena_alloc(sizeof(bool) * (size_t)n), plain = true, hoisted = true;
         size_t nl = strlen(name);
+        Names copies = {0}, copying = {0}; /* hoisted copies, and those that copy their own slot */
         for (const char *s = *text; *s && plain;) {
             if (!ident_char(*s) || (s > *text && ident_char(s[-1]))) {
                 s++;
@@ -3024,12 +3071,18 @@ static void dense_slots(const char **text, const char **fields) {
                 if (plain)
                     used[i] = true;
             } else if ((size_t)(t - s) > nl && !strncmp(s, name, nl) && s[nl] >= '0' && s[nl] <= '9') {
-                /* a hoisted copy keeps its slot's number only if that is what it copies */
-                const char *tok = format("%.*s", (int)(t - s), s), *slot = format("st->%s[%s];", name, tok + nl);
-                hoisted &= strstr(*text, format("%s = %s", tok, slot)) || strstr(*text, format("%s[l] = %s", tok, slot));
+                /* a hoisted copy (NAME<i> = st->NAME[i], or a lane's NAME<i>[l]) */
+                size_t len = (size_t)(t - s);
+                names_put(&copies, s, len);
+                const char *v = !strncmp(t, " = st->", 7) ? t + 7 : !strncmp(t, "[l] = st->", 10) ? t + 10 : NULL;
+                if (v && !strncmp(v, name, nl) && v[nl] == '[' && !strncmp(v + nl + 1, s + nl, len - nl) &&
+                    v[nl + 1 + len - nl] == ']')
+                    names_put(&copying, s, len);
             }
             s = t;
         }
+        for (size_t k = 0; k < copies.cap; k++) /* a copy keeps its slot's number only if that is what it copies */
+            hoisted &= !copies.key[k] || names_has(&copying, copies.key[k]);
         int *map = arena_alloc(sizeof(int) * (size_t)n), m = 0;
         for (int i = 0; i < n; i++)
             map[i] = used[i] ? m++ : -1;
