@@ -101,12 +101,20 @@ static bool ident_char(char ch) {
     return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_';
 }
 
+/* The end of the comment that starts at s ("/" "*"): just past its close,
+ * or the end of the text.  By hand, as strstr need not stop at the first
+ * match without first measuring the whole text. */
+static const char *comment_end(const char *s) {
+    for (s += 2; *s && !(s[0] == '*' && s[1] == '/'); s++)
+        ;
+    return *s ? s + 2 : s;
+}
+
 /* Adds every identifier of C text (numbers, comments and literals skipped). */
 static void names_scan(Names *t, const char *s) {
     while (*s) {
         if (s[0] == '/' && s[1] == '*') {
-            const char *e = strstr(s + 2, "*/");
-            s = e ? e + 2 : s + strlen(s);
+            s = comment_end(s);
         } else if (*s == '"' || *s == '\'') {
             char q = *s++;
             while (*s && *s != q)
@@ -2885,8 +2893,8 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
  * general root solve's tables do. */
 static bool indexed(const char *text, const char *name) {
     size_t len = strlen(name);
-    for (const char *q = text; (q = strstr(q, name)); q += len)
-        if (q[len] == '[' && !(q[len + 1] >= '0' && q[len + 1] <= '9'))
+    for (const char *q = text; *q; q++) /* by hand: one pass, as strstr from each match need not be */
+        if (*q == *name && !strncmp(q, name, len) && q[len] == '[' && !(q[len + 1] >= '0' && q[len + 1] <= '9'))
             return true;
     return false;
 }
@@ -2904,8 +2912,9 @@ static const char *upd_text(const Ctx *x, const bool *gone) {
  * number, in order, into *out (arena); their count. */
 static int slot_refs(const char *text, int **out) {
     int n = 0, cap = 0, *v = NULL;
-    for (const char *q = text; (q = strstr(q, "c_")) != NULL; q += 2) {
-        if ((q > text && ident_char(q[-1])) || (q[2] != 'R' && q[2] != 'k') || q[3] != '[' || !(q[4] >= '0' && q[4] <= '9'))
+    for (const char *q = text; *q; q++) {
+        if (q[0] != 'c' || q[1] != '_' || (q > text && ident_char(q[-1])) || (q[2] != 'R' && q[2] != 'k') ||
+            q[3] != '[' || !(q[4] >= '0' && q[4] <= '9'))
             continue;
         int i = 0;
         const char *d = q + 4;
@@ -3002,8 +3011,12 @@ static const char *renumber(const char *text, const char *name, const int *map, 
     Buf b = {0};
     size_t nl = strlen(name);
     for (const char *s = text; *s;) {
-        if (!ident_char(*s) || (s > text && ident_char(s[-1]))) {
-            emit(&b, "%c", *s++);
+        if (!ident_char(*s)) { /* up to the next token, at once */
+            const char *p = s;
+            while (*p && !ident_char(*p))
+                p++;
+            emit(&b, "%.*s", (int)(p - s), s);
+            s = p;
             continue;
         }
         const char *e = ident_end(s);
@@ -3048,9 +3061,9 @@ static void dense_slots(const char **text, const char **fields) {
         const char *l = format("%.*s", (int)len, q);
         q += len;
         char type[128], name[64];
-        int n = 0, at = 0;
+        int n = 0;
         const char *what = strstr(l, "/* ");
-        if (sscanf(l, " %127s %63[A-Za-z0-9_][%d];%n", type, name, &n, &at) != 3 || strncmp(name, "c_", 2) || !what ||
+        if (sscanf(l, " %127s %63[A-Za-z0-9_][%d];", type, name, &n) != 3 || strncmp(name, "c_", 2) || !what ||
             n <= 0) {
             emit(&out, "%s", l);
             continue;
@@ -3129,10 +3142,9 @@ static const char *in_lanes(const char *s, const Names *lane) {
     Buf b = {0};
     while (*s) {
         if (s[0] == '/' && s[1] == '*') {
-            const char *e = strstr(s + 2, "*/");
-            size_t n = e ? (size_t)(e + 2 - s) : strlen(s);
-            emit(&b, "%.*s", (int)n, s);
-            s += n;
+            const char *e = comment_end(s);
+            emit(&b, "%.*s", (int)(e - s), s);
+            s = e;
         } else if (*s == '"' || *s == '\'') {
             const char *p = s;
             char q = *p++;
