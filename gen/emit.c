@@ -2193,17 +2193,31 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
     int *lead = arena_alloc(sizeof(int) * (size_t)c->nelems), *sg = arena_alloc(sizeof(int) * (size_t)c->nelems);
     Sym *gsum = arena_alloc(sizeof(Sym) * (size_t)c->nelems);
     bool *shared = arena_alloc(sizeof(bool) * (size_t)c->nelems);
+    /* the first capacitor across each pair of nodes, found through a
+     * table keyed by the pair (open addressing), in time linear in the
+     * count */
+    size_t cap = 16;
+    while (cap < 2 * (size_t)c->nelems)
+        cap *= 2;
+    int *first = arena_alloc(sizeof(int) * cap);
+    for (size_t h = 0; h < cap; h++)
+        first[h] = -1;
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         lead[i] = -1, sg[i] = 1;
-        for (int j = 0; j < i && lead[i] < 0 && prim_ic(e) == IC_CAP; j++) {
-            const Elem *f = &c->elems[j];
-            if (prim_ic(f) == IC_CAP && lead[j] == j && ((f->n[0] == e->n[0] && f->n[1] == e->n[1]) ||
-                                                         (f->n[0] == e->n[1] && f->n[1] == e->n[0])))
-                lead[i] = j, sg[i] = f->n[0] == e->n[0] ? 1 : -1;
+        if (prim_ic(e) != IC_CAP)
+            continue;
+        unsigned lo = (unsigned)(e->n[0] < e->n[1] ? e->n[0] : e->n[1]), hi = (unsigned)(e->n[0] ^ e->n[1] ^ (int)lo);
+        size_t h = ((size_t)lo * 2654435761u ^ (size_t)hi * 40503u) & (cap - 1);
+        for (; first[h] >= 0; h = (h + 1) & (cap - 1)) {
+            const Elem *f = &c->elems[first[h]];
+            if ((f->n[0] == e->n[0] && f->n[1] == e->n[1]) || (f->n[0] == e->n[1] && f->n[1] == e->n[0]))
+                break;
         }
-        if (lead[i] < 0 && prim_ic(e) == IC_CAP)
-            lead[i] = i;
+        if (first[h] >= 0)
+            lead[i] = first[h], sg[i] = c->elems[first[h]].n[0] == e->n[0] ? 1 : -1;
+        else
+            first[h] = lead[i] = i;
     }
     for (int i = 0; i < c->nelems; i++)
         if (lead[i] >= 0 && lead[i] != i) {
