@@ -255,29 +255,34 @@ static void *grow(void *a, int n, int *cap, size_t size) {
     return b;
 }
 
+/* The text fmt makes of ap (arena). */
+static const char *vtext(const char *fmt, va_list ap) {
+    Buf b = {0};
+    buf_vadd(&b, fmt, ap);
+    return str(&b);
+}
+
 /* A statement of the sample loop defining `def` (NULL: a store). */
 static void put(Ctx *x, const char *def, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 static void put(Ctx *x, const char *def, const char *fmt, ...) {
-    Buf b = {0};
     va_list ap;
     va_start(ap, fmt);
-    buf_vadd(&b, fmt, ap);
+    const char *text = vtext(fmt, ap);
     va_end(ap);
     x->stmt = grow(x->stmt, x->nstmt, &x->capstmt, sizeof(Stmt));
-    x->stmt[x->nstmt++] = (Stmt){def, str(&b), x->own, x->phase};
+    x->stmt[x->nstmt++] = (Stmt){def, text, x->own, x->phase};
 }
 
 /* A statement of update() storing `store` (NULL: none) in adaptor block
  * `block` (-1: none). */
 static void upd(Ctx *x, int block, const char *store, const char *fmt, ...) __attribute__((format(printf, 4, 5)));
 static void upd(Ctx *x, int block, const char *store, const char *fmt, ...) {
-    Buf b = {0};
     va_list ap;
     va_start(ap, fmt);
-    buf_vadd(&b, fmt, ap);
+    const char *text = vtext(fmt, ap);
     va_end(ap);
     x->upd = grow(x->upd, x->nupd, &x->capupd, sizeof(Upd));
-    x->upd[x->nupd++] = (Upd){str(&b), store, block};
+    x->upd[x->nupd++] = (Upd){text, store, block};
 }
 
 /* A local of process named `name` (NULL: always there), its declaration,
@@ -2207,8 +2212,8 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
         lead[i] = -1, sg[i] = 1;
         if (prim_ic(e) != IC_CAP)
             continue;
-        unsigned lo = (unsigned)(e->n[0] < e->n[1] ? e->n[0] : e->n[1]), hi = (unsigned)(e->n[0] ^ e->n[1] ^ (int)lo);
-        size_t h = ((size_t)lo * 2654435761u ^ (size_t)hi * 40503u) & (cap - 1);
+        size_t lo = (size_t)(e->n[0] < e->n[1] ? e->n[0] : e->n[1]), hi = (size_t)(e->n[0] < e->n[1] ? e->n[1] : e->n[0]);
+        size_t h = (lo * 2654435761u ^ hi * 40503u) & (cap - 1);
         for (; first[h] >= 0; h = (h + 1) & (cap - 1)) {
             const Elem *f = &c->elems[first[h]];
             if ((f->n[0] == e->n[0] && f->n[1] == e->n[1]) || (f->n[0] == e->n[1] && f->n[1] == e->n[0]))
