@@ -3133,6 +3133,8 @@ static void dense_slots(const char **text, const char **fields) {
  * say) takes no room. */
 static const char *used_fields(const char *fields, const char *text) {
     Buf b = {0};
+    Names named = {0};
+    names_scan(&named, text);
     for (const char *q = fields; *q;) {
         const char *e = strchr(q, '\n');
         size_t len = e ? (size_t)(e - q) + 1 : strlen(q);
@@ -3146,7 +3148,7 @@ static const char *used_fields(const char *fields, const char *text) {
                 if (*t == '[' || *t == ';')
                     name = format("%.*s", (int)(t - r), r);
             }
-        if (!name || uses(text, name))
+        if (!name || names_has(&named, name))
             emit(&b, "%s", l);
     }
     return str(&b);
