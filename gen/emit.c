@@ -52,7 +52,8 @@ static const char *str(Buf *b) { return b->s ? b->s : ""; }
  * comments and string literals left out). */
 
 typedef struct Names {
-    const char **key; /* open addressing, NULL: empty */
+    const char **key; /* open addressing, NULL: empty; not terminated: */
+    size_t *len;      /* each key's length (keys point into the text named) */
     size_t cap, n;
 } Names;
 
@@ -68,34 +69,38 @@ static bool names_find(const Names *t, const char *s, size_t len, size_t *slot) 
         return false;
     size_t i = name_hash(s, len) & (t->cap - 1);
     for (; t->key[i]; i = (i + 1) & (t->cap - 1))
-        if (strlen(t->key[i]) == len && !memcmp(t->key[i], s, len))
+        if (t->len[i] == len && !memcmp(t->key[i], s, len))
             break;
     *slot = i;
     return t->key[i] != NULL;
 }
 
+/* Adds the name s[0..len), which must stay as it is while t is used. */
 static void names_put(Names *t, const char *s, size_t len) {
     size_t i;
     if (2 * (t->n + 1) > t->cap) {
-        Names u = {arena_alloc(sizeof(char *) * (t->cap ? 2 * t->cap : 64)), t->cap ? 2 * t->cap : 64, 0};
+        size_t cap = t->cap ? 2 * t->cap : 64;
+        Names u = {arena_alloc(sizeof(char *) * cap), arena_alloc(sizeof(size_t) * cap), cap, 0};
         for (size_t k = 0; k < t->cap; k++)
             if (t->key[k]) {
-                names_find(&u, t->key[k], strlen(t->key[k]), &i);
-                u.key[i] = t->key[k];
+                names_find(&u, t->key[k], t->len[k], &i);
+                u.key[i] = t->key[k], u.len[i] = t->len[k];
                 u.n++;
             }
         *t = u;
     }
     if (!names_find(t, s, len, &i)) {
-        t->key[i] = arena_strndup(s, len);
+        t->key[i] = s, t->len[i] = len;
         t->n++;
     }
 }
 
-static bool names_has(const Names *t, const char *name) {
+static bool names_has_n(const Names *t, const char *name, size_t len) {
     size_t i;
-    return names_find(t, name, strlen(name), &i);
+    return names_find(t, name, len, &i);
 }
+
+static bool names_has(const Names *t, const char *name) { return names_has_n(t, name, strlen(name)); }
 
 static bool ident_char(char ch) {
     return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_';
@@ -110,8 +115,11 @@ static const char *comment_end(const char *s) {
     return *s ? s + 2 : s;
 }
 
-/* Adds every identifier of C text (numbers, comments and literals skipped). */
-static void names_scan(Names *t, const char *s) {
+/* The next identifier of C text from *s (numbers, comments and literals
+ * skipped): its start, its length in *len, and *s just past it; NULL at
+ * the end of the text. */
+static const char *next_ident(const char **sp, size_t *len) {
+    const char *s = *sp;
     while (*s) {
         if (s[0] == '/' && s[1] == '*') {
             s = comment_end(s);
@@ -124,19 +132,32 @@ static void names_scan(Names *t, const char *s) {
             const char *b = s;
             while (ident_char(*s))
                 s++;
-            if (!(*b >= '0' && *b <= '9'))
-                names_put(t, b, (size_t)(s - b));
+            if (!(*b >= '0' && *b <= '9')) {
+                *sp = s, *len = (size_t)(s - b);
+                return b;
+            }
         } else {
             s++;
         }
     }
+    *sp = s;
+    return NULL;
 }
 
-/* True if C text names `name`. */
+/* Adds every identifier of C text. */
+static void names_scan(Names *t, const char *s) {
+    size_t len;
+    for (const char *b; (b = next_ident(&s, &len));)
+        names_put(t, b, len);
+}
+
+/* True if C text names `name`: a scan that stops at the first use. */
 static bool uses(const char *text, const char *name) {
-    Names t = {0};
-    names_scan(&t, text);
-    return names_has(&t, name);
+    size_t n = strlen(name), len;
+    for (const char *b; (b = next_ident(&text, &len));)
+        if (len == n && !memcmp(b, name, n))
+            return true;
+    return false;
 }
 
 /* ---- emission context ---- */
@@ -2538,27 +2559,44 @@ static const char *state_fields(Ctx *x, int nd) {
 
 /* ---- templates ---- */
 
+/* The text of the hole that starts at h ("{{"), and its end in *end. */
+static const char *hole_text(const char *h, const Hole *holes, int n, const char **end) {
+    const char *e = strstr(h, "}}");
+    if (!e)
+        die("unterminated hole in template");
+    int len = (int)(e - h - 2);
+    const char *text = NULL;
+    for (int i = 0; i < n; i++)
+        if ((int)strlen(holes[i].name) == len && !strncmp(holes[i].name, h + 2, (size_t)len))
+            text = holes[i].text;
+    if (!text)
+        die("template hole '%.*s' has no value", len, h + 2);
+    *end = e + 2;
+    return text;
+}
+
+/* Measured first and then written, so that a voice's whole text is
+ * allocated once. */
 const char *fill(const char *tmpl, const Hole *holes, int n) {
     Buf b = {0};
-    for (const char *p = tmpl; *p;) {
-        const char *h = strstr(p, "{{");
-        if (!h) {
-            emit(&b, "%s", p);
-            break;
+    for (int pass = 0; pass < 2; pass++) {
+        size_t need = 0;
+        for (const char *p = tmpl; *p;) {
+            const char *h = strstr(p, "{{"), *e;
+            size_t k = h ? (size_t)(h - p) : strlen(p);
+            if (pass)
+                buf_put(&b, p, k);
+            need += k;
+            if (!h)
+                break;
+            const char *text = hole_text(h, holes, n, &e);
+            if (pass)
+                buf_put(&b, text, strlen(text));
+            need += strlen(text);
+            p = e;
         }
-        emit(&b, "%.*s", (int)(h - p), p);
-        const char *e = strstr(h, "}}");
-        if (!e)
-            die("unterminated hole in template");
-        int len = (int)(e - h - 2);
-        const char *text = NULL;
-        for (int i = 0; i < n; i++)
-            if ((int)strlen(holes[i].name) == len && !strncmp(holes[i].name, h + 2, (size_t)len))
-                text = holes[i].text;
-        if (!text)
-            die("template hole '%.*s' has no value", len, h + 2);
-        emit(&b, "%s", text);
-        p = e + 2;
+        if (!pass)
+            buf_reserve(&b, need);
     }
     return str(&b);
 }
@@ -3029,13 +3067,10 @@ static const char *ident_end(const char *s) {
 static const char *renumber(const char *text, const char *name, const int *map, int n, bool rename) {
     Buf b = {0};
     size_t nl = strlen(name);
+    const char *kept = text; /* text from here to s is copied as it is */
     for (const char *s = text; *s;) {
-        if (!ident_char(*s)) { /* up to the next token, at once */
-            const char *p = s;
-            while (*p && !ident_char(*p))
-                p++;
-            emit(&b, "%.*s", (int)(p - s), s);
-            s = p;
+        if (!ident_char(*s)) {
+            s++;
             continue;
         }
         const char *e = ident_end(s);
@@ -3050,19 +3085,21 @@ static const char *renumber(const char *text, const char *name, const int *map, 
                 const char *r = e + 1;
                 while (*r >= '0' && *r <= '9')
                     r++;
+                buf_put(&b, kept, (size_t)(s - kept));
                 emit(&b, "%s[%d", name, i < n && map[i] >= 0 ? map[i] : i);
-                s = r;
+                s = kept = r;
                 continue;
             }
             if (rename && digits && (i = atoi(d)) < n && map[i] >= 0) { /* NAME<i>: a hoisted copy */
+                buf_put(&b, kept, (size_t)(s - kept));
                 emit(&b, "%s%d", name, map[i]);
-                s = e;
+                s = kept = e;
                 continue;
             }
         }
-        emit(&b, "%.*s", (int)(e - s), s);
         s = e;
     }
+    buf_put(&b, kept, strlen(kept));
     return str(&b);
 }
 
@@ -3114,7 +3151,7 @@ static void dense_slots(const char **text, const char **fields) {
             s = t;
         }
         for (size_t k = 0; k < copies.cap; k++) /* a copy keeps its slot's number only if that is what it copies */
-            hoisted &= !copies.key[k] || names_has(&copying, copies.key[k]);
+            hoisted &= !copies.key[k] || names_has_n(&copying, copies.key[k], copies.len[k]);
         int *map = arena_alloc(sizeof(int) * (size_t)n), m = 0;
         for (int i = 0; i < n; i++)
             map[i] = used[i] ? m++ : -1;
@@ -3342,7 +3379,7 @@ static const char *batch_text(Ctx *x, const char *dirty) {
         names_scan(&used, value);
         bool fixed = true; /* a number, the same in every lane (cast to real, perhaps) */
         for (size_t k = 0; k < used.cap; k++)
-            fixed = fixed && (!used.key[k] || !strcmp(used.key[k], "real"));
+            fixed = fixed && (!used.key[k] || (used.len[k] == 4 && !memcmp(used.key[k], "real", 4)));
         if (fixed) {
             emit(&fix, "        const %s %s = %s;\n", type, l->name, value);
             continue;
@@ -3431,7 +3468,7 @@ static const char *batch_text(Ctx *x, const char *dirty) {
                 Names in = {0};
                 names_scan(&in, line);
                 for (size_t j = 0; j < in.cap; j++)
-                    if (in.key[j] && names_has(&later, in.key[j]) && !names_has(&lane, in.key[j]))
+                    if (in.key[j] && names_has_n(&later, in.key[j], in.len[j]) && !names_has_n(&lane, in.key[j], in.len[j]))
                         return fallback;
             }
             if (d != 1 || !names_has(&later, name)) {

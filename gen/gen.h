@@ -82,6 +82,8 @@ typedef struct Buf {
 } Buf;
 void buf_add(Buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 void buf_vadd(Buf *b, const char *fmt, va_list ap);
+void buf_put(Buf *b, const char *s, size_t n); /* n bytes of s, as they are */
+void buf_reserve(Buf *b, size_t n);             /* room for n more bytes */
 /* The whole of a regular file of at most 16 MiB, NUL-terminated, in the
  * arena (*len its length); NULL with errno set otherwise (EINVAL: not a
  * regular file, EFBIG: too large). */

@@ -52,6 +52,7 @@ struct Sx {
     int *num; /* item -> its temporary's number */
     int *hash; /* open addressing over the temporaries' texts, 1 + item (0: empty) */
     int nhash;
+    int fence; /* items before it were made before the last statement */
 };
 
 static unsigned text_hash(const char *s) {
@@ -121,8 +122,11 @@ static Sym temp(Sx *s, char op, const char *text, Sym a, Sym b) {
     }
     unsigned j = text_hash(text) & (unsigned)(s->nhash - 1);
     for (; s->hash[j]; j = (j + 1) & (unsigned)(s->nhash - 1))
-        if (!strcmp(s->it[s->hash[j] - 1].text, text))
-            return (Sym){.t = s->hash[j] - 1};
+        if (!strcmp(s->it[s->hash[j] - 1].text, text)) {
+            if (s->hash[j] - 1 >= s->fence)
+                return (Sym){.t = s->hash[j] - 1};
+            break; /* made before a statement: a new one takes its slot */
+        }
     int t = sx_push(s, (Item){.text = text, .dep = {a.t, b.t}, .op = op, .a = a, .b = b});
     s->hash[j] = t + 1;
     return (Sym){.t = t};
@@ -195,11 +199,10 @@ const char *sx_use(Sx *s, Sym a) {
 }
 
 /* A statement may write what a temporary reads: none made before it is
- * reused after it. */
+ * reused after it (the fence, rather than clearing the table, which made
+ * a statement per element quadratic). */
 void sx_stmt(Sx *s, const char *line) {
-    sx_push(s, (Item){.text = line, .dep = {-1, -1}, .stmt = true});
-    if (s->hash)
-        memset(s->hash, 0, sizeof(int) * (size_t)s->nhash);
+    s->fence = sx_push(s, (Item){.text = line, .dep = {-1, -1}, .stmt = true}) + 1;
 }
 
 /* An operand's value once every temporary before it has one. */

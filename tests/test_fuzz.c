@@ -174,7 +174,7 @@ typedef struct Text {
     size_t len, cap;
 } Text;
 
-static void buf_reserve(Text *b, size_t n) {
+static void text_reserve(Text *b, size_t n) {
     if (b->len + n + 1 <= b->cap)
         return;
     while (b->len + n + 1 > b->cap)
@@ -184,7 +184,7 @@ static void buf_reserve(Text *b, size_t n) {
 }
 
 static void buf_insert(Text *b, size_t at, const char *s, size_t n) {
-    buf_reserve(b, n);
+    text_reserve(b, n);
     memmove(b->p + at + n, b->p + at, b->len - at);
     memcpy(b->p + at, s, n);
     b->len += n;
