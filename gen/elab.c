@@ -44,6 +44,7 @@ typedef struct Elab {
     Vec params;    /* Param* */
     Vec inputs;    /* const char* */
     Vec input_fn;  /* SrcFn*, parallel to inputs (NULL: none) */
+    Vec input_pos; /* SrcPos* of each .input name, parallel to inputs (NULL: a deck's own) */
     Vec outs;      /* Probe* */
     Vec ics;       /* IcSpec* */
     Vec models;    /* Line* */
@@ -59,6 +60,7 @@ typedef struct Elab {
     Map elem_ix;   /* element name -> index of the first element of that name */
     bool elem_ix_stale; /* while mutators take elements out: search elems */
     Map dropped_ix; /* resistors to nodes nothing else meets, taken out -> 1 */
+    Vec dropped;    /* Dropped*: those resistors, for check_graph's messages */
     Map paired_ix;  /* a diode merged into the one it faces -> index of that one's name in paired */
     Map perfect_ix; /* a perfectly coupled winding, taken out -> 1 */
     Vec paired;     /* const char*: the diodes that took in their facing twins */
@@ -618,6 +620,7 @@ static void dir_simple(Elab *E, Line *l) {
             case_check(E, NS_INPUT, s, l->args[i].pos);
             vec_push(&E->inputs, (void *)s);
             vec_push(&E->input_fn, NULL);
+            vec_push(&E->input_pos, &l->args[i].pos);
             map_put(&E->input_ix, s, E->inputs.len - 1);
         }
     } else if (!strcmp(d, ".model")) {
@@ -894,6 +897,7 @@ static Line *spice_source(Elab *E, Scope *S, Line *l) {
         error_at(l->namepos, "source '%s' would be driven by input '%s', but that name is taken", l->name, in);
     vec_push(&E->inputs, in);
     vec_push(&E->input_fn, f);
+    vec_push(&E->input_pos, NULL);
     map_put(&E->input_ix, in, E->inputs.len - 1);
     drive->kind = VAL_NAME;
     drive->name = in;
@@ -1336,6 +1340,11 @@ static void pair_diodes(Elab *E) {
     index_elems(E);
 }
 
+typedef struct Dropped {
+    const char *name, *far; /* the resistor, and the node nothing else met */
+    int near;               /* the node it hung from, numbered as after the drop */
+} Dropped;
+
 /* A resistor to a node that nothing else meets carries no current, and
  * that node has the potential of the resistor's other end (SPICE allows
  * it: an output read through a resistor that leads nowhere).  Each such
@@ -1346,6 +1355,7 @@ static void drop_dangling(Elab *E) {
     int nn = E->nodes.len, ne = E->elems.len;
     int *deg = arena_alloc(sizeof(int) * (size_t)nn), *alias = arena_alloc(sizeof(int) * (size_t)nn);
     bool *gone = arena_alloc(sizeof(bool) * (size_t)(ne + 1));
+    int *ends = arena_alloc(sizeof(int) * (size_t)(ne + 1)); /* a dropped one's far node */
     for (int i = 0; i < ne; i++)
         for (int k = 0; k < 2; k++)
             deg[((Elem *)E->elems.data[i])->n[k]]++;
@@ -1363,6 +1373,7 @@ static void drop_dangling(Elab *E) {
                 if (far == 0 || deg[far] != 1)
                     continue;
                 gone[i] = more = true;
+                ends[i] = far;
                 dropped++;
                 deg[far]--, deg[near]--;
                 alias[far] = near;
@@ -1387,13 +1398,21 @@ static void drop_dangling(Elab *E) {
             to = alias[to];
         map_put(&E->node_ix, E->nodes.data[n], map[to]);
     }
-    for (int i = 0; i < ne; i++)
+    for (int i = 0; i < ne; i++) {
+        Elem *e = E->elems.data[i];
         if (!gone[i]) {
-            Elem *e = E->elems.data[i];
             for (int k = 0; k < 2; k++)
                 e->n[k] = map[e->n[k]];
             vec_push(&elems, e);
+            continue;
         }
+        Dropped *d = arena_alloc(sizeof *d);
+        int far = ends[i], near = alias[far];
+        while (alias[near] != near)
+            near = alias[near];
+        *d = (Dropped){e->name, E->nodes.data[far], map[near]};
+        vec_push(&E->dropped, d);
+    }
     E->nodes = nodes;
     E->elems = elems;
     index_elems(E);
@@ -1587,6 +1606,21 @@ static void check_values(Elab *E) {
     }
 }
 
+/* An input that no source reads is most likely a slip (a source's drive
+ * given as a number, or the name spelt otherwise): the voice would
+ * ignore what is fed to it. */
+static void check_inputs(Elab *E) {
+    const Circuit *c = E->c;
+    for (int i = 0; i < E->inputs.len; i++) {
+        const SrcPos *pos = E->input_pos.data[i];
+        bool read = false;
+        for (int k = 0; k < c->nelems && !read; k++)
+            read = c->elems[k].input == i;
+        if (pos && !read)
+            warn_at(*pos, "input '%s' drives nothing: no source reads it", (const char *)E->inputs.data[i]);
+    }
+}
+
 /* Every node needs two connections and a path to ground. */
 static void check_graph(Elab *E) {
     Circuit *c = E->c;
@@ -1599,10 +1633,20 @@ static void check_graph(Elab *E) {
             deg[c->elems[i].n[k]]++;
             first[c->elems[i].n[k]] = i;
         }
-    for (int n = 1; n < c->nnodes; n++)
-        if (deg[n] < 2)
-            error_at(c->elems[first[n]].pos, "node '%s' has only one connection (%s)", c->nodes[n],
-                     c->elems[first[n]].name);
+    for (int n = 1; n < c->nnodes; n++) {
+        if (deg[n] >= 2)
+            continue;
+        /* a resistor that led from it to a node nothing else meets has
+         * left the network: say so, or the message names the wrong place */
+        const char *why = "";
+        for (int k = 0; k < E->dropped.len; k++) {
+            const Dropped *d = E->dropped.data[k];
+            if (d->near == n)
+                why = format("; %s went on to '%s', which nothing else meets, and was taken out", d->name, d->far);
+        }
+        error_at(c->elems[first[n]].pos, "node '%s' has only one connection (%s)%s", c->nodes[n],
+                 c->elems[first[n]].name, why);
+    }
     if (deg[0] == 0)
         error_at(c->elems[0].pos, "nothing connects to ground (node 0)");
     /* the elements at each node (CSR), then a search from ground */
@@ -1752,6 +1796,7 @@ static Circuit *elaborate(SrcFile *f) {
     apply_ics(&E);
     finish(&E);
     check_graph(&E);
+    check_inputs(&E);
     check_values(&E);
     return c;
 }

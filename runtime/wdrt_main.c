@@ -97,7 +97,9 @@ static void usage_error(const char *fmt, ...) {
     va_start(ap, fmt);
     fprintf(stderr, "wdrt: error: ");
     vfprintf(stderr, fmt, ap);
-    fprintf(stderr, "\n%s", usage_text);
+    /* the synopsis (the text up to its first blank line), not the whole help */
+    fprintf(stderr, "\n%.*s", (int)(strstr(usage_text, "\n\n") + 1 - usage_text), usage_text);
+    fprintf(stderr, "(wdrt --help says more)\n");
     va_end(ap);
     exit(EXIT_USAGE);
 }

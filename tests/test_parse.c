@@ -513,11 +513,26 @@ static void test_graph(void **state) {
     expect_error(".input in\nV1 a 0 in\n", "t.wdn:2:1: error: node 'a' has only one connection (V1)");
     /* a resistor to a node nothing else meets carries no current: it goes,
      * and leaves the source alone at a */
-    expect_error(".input in\n" SRC "R1 a b 1k\n", "t.wdn:2:1: error: node 'a' has only one connection (V1)");
+    expect_error(".input in\n" SRC "R1 a b 1k\n", "t.wdn:2:1: error: node 'a' has only one connection (V1); R1 went "
+                                               "on to 'b', which nothing else meets, and was taken out");
     expect_error(".input in\n" SRC "R1 a 0 1k\nR2 b c 1k\nC2 b c 1u\n",
                  "t.wdn:4:1: error: node 'b' has no path to ground (node 0)");
     expect_error(".input in\nV1 a b in\nR1 a b 1k\n",
                  "t.wdn:2:1: error: nothing connects to ground (node 0)");
+}
+
+/* An input no source reads loads, with a warning at its name. */
+static void test_unread_input(void **state) {
+    (void)state;
+    Capture cap;
+    capture_begin(&cap);
+    Circuit *c = wdc_load_string("t.wdn", ".input in\n.input x\n" SRC "R1 a 0 1k\n.output o v(a)\n");
+    char *out = capture_end(&cap);
+    assert_non_null(c);
+    char *got = first_line(out);
+    assert_string_equal(got, "t.wdn:2:8: warning: input 'x' drives nothing: no source reads it");
+    free(got);
+    free(out);
 }
 
 /* An output read through resistors that lead nowhere, as SPICE allows:
@@ -1068,6 +1083,7 @@ int main(void) {
         cmocka_unit_test(test_not_supported_yet),
         cmocka_unit_test(test_graph),
         cmocka_unit_test(test_dangling_resistors),
+        cmocka_unit_test(test_unread_input),
         cmocka_unit_test(test_facing_diodes),
         cmocka_unit_test(test_deck),
         cmocka_unit_test(test_deck_sources),

@@ -159,6 +159,14 @@ static void test_cli_cache(void **s) {
     /* errors: a missing netlist, a bad option, a scene error */
     snprintf(cmd, sizeof cmd, "bin/wdrt render %s/c.wds --frobnicate 2>/dev/null", g_dir);
     assert_int_equal(tl_system(cmd), 2);
+    /* a usage error prints the error and the synopsis, not the whole help */
+    snprintf(cmd, sizeof cmd, "bin/wdrt render %s/c.wds --frobnicate 2>&1 | grep -q \"unknown option '--frobnicate'\"",
+             g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "bin/wdrt render %s/c.wds --frobnicate 2>&1 | grep -q '^usage: wdrt render'", g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "bin/wdrt render %s/c.wds --frobnicate 2>&1 | grep -q '^exit status'", g_dir);
+    assert_int_equal(tl_system(cmd), 1);
     write_file("bad.wds", "(voice m \"nowhere.wdn\")\n");
     snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/bad.wds -o %s/x.wav 2>/dev/null", g_dir,
              g_dir, g_dir);
