@@ -33,15 +33,18 @@ typedef struct Opts {
     double tol, fast_tol; /* fast_tol: 0 unless --tol was given */
 } Opts;
 
+static const char synopsis[] =
+    "usage: wdc FILE.wdn [-o DIR] [--precision double|float] [--energy] [--no-skip] [--batch]\n"
+    "       wdc FILE.wdn --check\n"
+    "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
+    "                    [--csv OUT.csv] [--events FILE]\n"
+    "       wdc FILE.wdn --lv2 DIR [--precision double|float]  an LV2 plugin bundle of the voice\n"
+    "       wdc FILE.wdn --dot OUT.dot\n"
+    "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n";
+
 static void usage(FILE *f) {
+    fprintf(f, "%s", synopsis);
     fprintf(f,
-        "usage: wdc FILE.wdn [-o DIR] [--precision double|float] [--energy] [--no-skip] [--batch]\n"
-        "       wdc FILE.wdn --check\n"
-        "       wdc FILE.wdn --render OUT.wav [--input SPEC]... [--seconds S] [--rate HZ]\n"
-        "                    [--csv OUT.csv] [--events FILE]\n"
-        "       wdc FILE.wdn --lv2 DIR [--precision double|float]  an LV2 plugin bundle of the voice\n"
-        "       wdc FILE.wdn --dot OUT.dot\n"
-        "       wdc FILE.wdn --tableau            each root adaptor's tableau and solved matrix\n"
         "nonlinear elements: [--solver fast|newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
         "--tol T: a Newton solve's relative tolerance (default 1e-12); the fast solver's error is\n"
         "          below 5e-8 (|v| + nVt) by its table, and only a T below that adds Halley steps\n"
@@ -57,11 +60,11 @@ static void usage(FILE *f) {
         "exit status: 0 ok, 1 netlist error, 2 usage error, 3 toolchain or internal error\n");
 }
 
+/* The error and the synopsis, not the whole help. */
 static void usage_error(const char *fmt, const char *arg) {
-    fprintf(stderr, "wdc: ");
+    fprintf(stderr, "wdc: error: ");
     fprintf(stderr, fmt, arg);
-    fprintf(stderr, "\n");
-    usage(stderr);
+    fprintf(stderr, "\n%s(wdc --help says more)\n", synopsis);
     exit(EXIT_USAGE);
 }
 
