@@ -378,7 +378,7 @@ static int f_budget(wdrt_scene *S, const sx *f) {
     if (arity(S, f, 2, 2, "(budget CPU)") || number(S, f->head->next, &S->budget_cpu))
         return -1;
     if (!(S->budget_cpu > 0 && S->budget_cpu <= 64))
-        return ERR(f->head->next, "a budget is a positive share of one core (0.5 = half)");
+        return ERR(f->head->next, "a budget is a share of one core (0.5 = half), above 0 and at most 64");
     return 0;
 }
 
@@ -492,7 +492,8 @@ static int f_distance(wdrt_scene *S, const sx *f) {
         if (number(S, p->head->next, &x))
             return -1;
         if (sx_is(p->head, "rolloff") ? !(x >= 0 && x <= 100) : !(x > 0 && x <= 1e6))
-            return ERR(p->head->next, "out of range");
+            return ERR(p->head->next, sx_is(p->head, "rolloff") ? "a rolloff lies between 0 and 100"
+                                                                   : "a distance is in m, above 0 and at most 10^6");
         *(sx_is(p->head, "ref") ? &S->sp.ref : sx_is(p->head, "max") ? &S->sp.max : &S->sp.rolloff) = x;
     }
     if (!(S->sp.max > S->sp.ref))
@@ -704,7 +705,7 @@ static int voice_prop(wdrt_scene *S, scvoice *v, const sx *p) {
         v->priority = (int)x;
     } else if (!strcmp(k, "cost")) {
         if (!(x > 0 && x < 1e9))
-            return ERR(a, "a cost is a positive number of ns per sample");
+            return ERR(a, "a cost is a number of ns per sample, above 0 and below 10^9");
         v->cost = x;
     } else if (!strcmp(k, "quiet")) {
         if (!(x <= 0 && x >= -300))
@@ -712,7 +713,7 @@ static int voice_prop(wdrt_scene *S, scvoice *v, const sx *p) {
         v->quiet = pow(10, x / 20);
     } else if (!strcmp(k, "hold")) {
         if (!(x >= 0 && x <= 3600))
-            return ERR(a, "a hold is a time in seconds");
+            return ERR(a, "a hold is a time in seconds, from 0 to 3600");
         v->hold = x;
     }
     return 0;
@@ -1064,7 +1065,8 @@ static int body_modes(wdrt_scene *S, scbody *b, const sx *p) {
             if (number(S, x, &v[i++]))
                 return -1;
         if (!(v[0] > 0 && v[0] < 1e6 && v[1] > 0 && v[1] <= 1000 && fabs(v[2]) < 1e9))
-            return ERR(m, "a mode has a frequency (Hz) and a T60 (s) above 0, and a finite gain");
+            return ERR(m, "a mode has a frequency in Hz (above 0, below 10^6), a T60 in s (above 0, at most 1000) "
+                          "and a gain (below 10^9 in size)");
         surf_mode *md = &b->modes[b->nmodes++];
         md->f = v[0], md->t60 = v[1], md->gain[0] = v[2];
     }
@@ -1147,7 +1149,7 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
                                      : ERR(a, "expected noise, grid or none");
         b->surf.relief.kind = (surf_relief_kind)kind;
         if (a->next && (number(S, a->next, &b->surf.relief.scale) || !(b->surf.relief.scale > 0 && b->surf.relief.scale < 1e3)))
-            return a->next->kind == SX_NUM ? ERR(a->next, "a relief's scale is a length in m above 0") : -1;
+            return a->next->kind == SX_NUM ? ERR(a->next, "a relief's scale is a length in m, above 0 and below 1000") : -1;
         b->surf.relief.width = b->surf.relief.scale / 2;
         if (a->next && a->next->next &&
             (number(S, a->next->next, &b->surf.relief.width) ||
@@ -1196,11 +1198,11 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
         b->surf.hardness = x;
     } else if (!strcmp(k, "damping")) {
         if (!(x >= 0 && x < 1e6))
-            return ERR(a, "a contact damping is a rate in 1/s, 0 or more");
+            return ERR(a, "a contact damping is a rate in 1/s, 0 or more and below 10^6");
         b->surf.damping = x;
     } else if (!strcmp(k, "roll") || !strcmp(k, "slip")) {
         if (!(x > 0 && x < 1e6))
-            return ERR(a, "a cutoff is a frequency in Hz above 0");
+            return ERR(a, "a cutoff is a frequency in Hz, above 0 and below 10^6");
         *(k[0] == 'r' ? &b->surf.cutoff_roll : &b->surf.cutoff_slip) = x;
     } else if (!strcmp(k, "gain")) {
         if (!isfinite(x))
@@ -1272,12 +1274,12 @@ static int body_hit(wdrt_scene *S, const sx *f, scevent *e) {
             if (number(S, p->head->next, &e->impulse))
                 return -1;
             if (!(e->impulse >= 0 && e->impulse < 1e6))
-                return ERR(p->head->next, "an impulse is in N s, 0 or more");
+                return ERR(p->head->next, "an impulse is in N s, 0 or more and below 10^6");
         } else if (p->kind == SX_LIST && sx_is(p->head, "speed") && p->len == 3) {
             if (number(S, p->head->next, &e->vn) || number(S, p->head->next->next, &e->vt))
                 return -1;
             if (!(fabs(e->vn) < 1e4 && fabs(e->vt) < 1e4))
-                return ERR(p, "speeds are in m/s");
+                return ERR(p, "speeds are in m/s, below 10^4 in size");
         } else {
             return ERR(p, "expected (impulse J) or (speed VN VT)");
         }
@@ -1310,7 +1312,7 @@ static int body_contact(wdrt_scene *S, const sx *f, scevent *e) {
             if (number(S, p->head->next, &e->until))
                 return -1;
             if (!(e->until > e->time && e->until <= 86400))
-                return ERR(p->head->next, "a contact lasts until a time after it starts");
+                return ERR(p->head->next, "a contact lasts until a time after it starts, at most a day");
         } else if (value(S, p->head->next, k == 0 ? &e->force : k == 1 ? &e->slip : &e->roll, 1)) {
             return -1;
         } else if ((k == 0 ? &e->force : k == 1 ? &e->slip : &e->roll)->motion) {
@@ -1552,7 +1554,7 @@ static int impact(wdrt_scene *S, const sx *f, scevent *e) {
         if (number(S, p->head->next, &x))
             return -1;
         if (!(x >= 0 && x < 1e9))
-            return ERR(p->head->next, "expected a positive number");
+            return ERR(p->head->next, "expected a number, 0 or more and below 10^9");
         if (sx_is(p->head, "impulse"))
             e->impulse = x;
         else

@@ -236,6 +236,10 @@ static void test_body_errors(void **st) {
     assert_non_null(strstr(err, "e.wds:3:7: error: a contact needs its (force F) and (until T)"));
     load_error("(body a (modes (440 1 1)))\n(body b (modes (40 1 1)))\n(at 1 (impact a b))\n", err, sizeof err);
     assert_non_null(strstr(err, "e.wds:3:7: error: an impact between bodies needs its (impulse J)"));
+    /* a number past a bound is told the bound, not only the lower one */
+    load_error("(body a (modes (440 1 1)))\n(body b (modes (40 1 1)))\n(at 1 (impact a b (impulse 1e300)))\n", err,
+               sizeof err);
+    assert_non_null(strstr(err, "e.wds:3:28: error: an impulse is in N s, 0 or more and below 10^6"));
     load_error("(body a (modes (440 1 1)) (relief bumpy 1))\n", err, sizeof err);
     assert_non_null(strstr(err, "e.wds:1:35: error: unknown relief 'bumpy'"));
 }

@@ -319,12 +319,14 @@ static const bad g_load_errors[] = {
     {"(distance inverso)", "1:11: error: unknown distance model 'inverso'; did you mean 'inverse'?"},
     {"(distance linear (ref 10) (max 5))", "1:1: error: the maximum distance must be beyond the reference distance"},
     {"(distance linear (reff 10))", "1:18: error: expected (ref M), (max M) or (rolloff R)"},
+    {"(distance linear (ref 0))", "1:23: error: a distance is in m, above 0 and at most 10^6"},
+    {"(distance linear (rolloff 200))", "1:27: error: a rolloff lies between 0 and 100"},
     {"(c 0)", "1:4: error: the speed of sound lies between 1 and 100000 m/s"},
     {"(air maybe)", "1:6: error: expected on or off"},
     {"(listener (facing 0 0 1))", "1:11: error: a listener faces some way across the ground (x or y not 0)"},
     {"(wall w (from 0 0) (to 1 1))", "1:1: error: expected (wall NAME (from X Y) (to X Y) (loss DB))"},
     {"(wall w (from 0 0) (to 1) (loss 3))", "1:20: error: expected (to X Y)"},
-    {"(budget 0)", "1:9: error: a budget is a positive share of one core (0.5 = half)"},
+    {"(budget 0)", "1:9: error: a budget is a share of one core (0.5 = half), above 0 and at most 64"},
     {"42", "1:1: error: expected a form such as (voice ...) or (at ...)"},
     {"(voice p \"x.wdn\"", "1:17: error: expected ')' to close '(' at 1:1"}, /* the reader's */
 };
