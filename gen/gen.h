@@ -19,7 +19,8 @@
  *   lv2.c    Wdf -> an LV2 plugin bundle of the voice
  *
  * Memory policy: everything the compiler allocates comes from an arena
- * (calloc) and is released only when the process exits.  Errors in the
+ * (zeroed: small pieces carved from chunks, large ones calloc'd) and is
+ * released only when the process exits.  Errors in the
  * user's netlist go through error_at(), which prints
  * FILE:LINE:COL: error: MESSAGE, the source line and a caret, and then
  * unwinds to the caller of the phase (see Diag).  Internal failures go
