@@ -151,11 +151,28 @@ static void names_scan(Names *t, const char *s) {
         names_put(t, b, len);
 }
 
+/* Adds the identifiers of C text that `want` holds: a small set, where a
+ * large text's every name would make a large one. */
+static void names_scan_in(Names *t, const char *s, const Names *want) {
+    size_t len;
+    for (const char *b; (b = next_ident(&s, &len));)
+        if (names_has_n(want, b, len))
+            names_put(t, b, len);
+}
+
 /* True if C text names `name`: a scan that stops at the first use. */
 static bool uses(const char *text, const char *name) {
     size_t n = strlen(name), len;
     for (const char *b; (b = next_ident(&text, &len));)
         if (len == n && !memcmp(b, name, n))
+            return true;
+    return false;
+}
+
+/* True if any of the n texts names `name`. */
+static bool uses_any(const char *const *texts, int n, const char *name) {
+    for (int i = 0; i < n; i++)
+        if (uses(texts[i], name))
             return true;
     return false;
 }
@@ -1475,9 +1492,13 @@ static bool *live_keep(const Stmt *l, int n, Names *live) {
 static const char *live_text(const Stmt *l, int n, Names *live) {
     bool *keep = live_keep(l, n, live);
     Buf b = {0};
+    size_t need = 0;
+    for (int i = 0; i < n; i++)
+        need += keep[i] ? strlen(l[i].text) : 0;
+    buf_reserve(&b, need); /* allocated once */
     for (int i = 0; i < n; i++)
         if (keep[i])
-            emit(&b, "%s", l[i].text);
+            buf_put(&b, l[i].text, strlen(l[i].text));
     return str(&b);
 }
 
@@ -2801,14 +2822,16 @@ static const struct {
 static const char *helpers(const char *text, const char *wg) {
     int n = (int)(sizeof helper_tab / sizeof helper_tab[0]);
     bool keep[sizeof helper_tab / sizeof helper_tab[0]] = {0};
-    Names used = {0}, wgn = {0};
-    names_scan(&used, text);
-    names_scan(&wgn, wg);
+    Names used = {0}, wgn = {0}, all = {0};
+    for (int k = 0; k < n; k++)
+        names_put(&all, helper_tab[k].name, strlen(helper_tab[k].name));
+    names_scan_in(&used, text, &all);
+    names_scan_in(&wgn, wg, &all);
     for (int k = n - 1; k >= 0; k--) {
         const char *h = helper_tab[k].name;
         keep[k] = names_has(&used, h) || (strcmp(h, "clampd") && names_has(&wgn, h));
         if (keep[k])
-            names_scan(&used, helper_tab[k].text);
+            names_scan_in(&used, helper_tab[k].text, &all);
     }
     Buf b = {0};
     for (int k = 0; k < n; k++)
@@ -2833,13 +2856,14 @@ static void emit_sample(Ctx *x) {
         put(x, NULL, "        t_pos++;\n");
 }
 
-/* A parameter list with the parameters `body` does not name marked
- * UNUSED: each of `names` is the name of the declaration in `decls`
- * at the same place. */
-static const char *params_of(const char *body, int n, const char *const *decls, const char *const *names) {
+/* A parameter list with the parameters that none of the texts `parts`
+ * names marked UNUSED: each of `names` is the name of the declaration in
+ * `decls` at the same place. */
+static const char *params_of(const char *const *parts, int nparts, int n, const char *const *decls,
+                             const char *const *names) {
     Buf b = {0};
     for (int k = 0; k < n; k++)
-        emit(&b, "%s%s%s", k ? ", " : "", decls[k], uses(body, names[k]) ? "" : " UNUSED");
+        emit(&b, "%s%s%s", k ? ", " : "", decls[k], uses_any(parts, nparts, names[k]) ? "" : " UNUSED");
     return str(&b);
 }
 
@@ -2959,9 +2983,13 @@ static bool indexed(const char *text, const char *name) {
 /* update()'s text: its statements in order, those gone (if any) left out. */
 static const char *upd_text(const Ctx *x, const bool *gone) {
     Buf b = {0};
+    size_t need = 0;
+    for (int i = 0; i < x->nupd; i++)
+        need += !gone || !gone[i] ? strlen(x->upd[i].text) : 0;
+    buf_reserve(&b, need); /* allocated once */
     for (int i = 0; i < x->nupd; i++)
         if (!gone || !gone[i])
-            emit(&b, "%s", x->upd[i].text);
+            buf_put(&b, x->upd[i].text, strlen(x->upd[i].text));
     return str(&b);
 }
 
@@ -3067,6 +3095,7 @@ static const char *ident_end(const char *s) {
 static const char *renumber(const char *text, const char *name, const int *map, int n, bool rename) {
     Buf b = {0};
     size_t nl = strlen(name);
+    buf_reserve(&b, strlen(text)); /* smaller numbers: the text does not grow */
     const char *kept = text; /* text from here to s is copied as it is */
     for (const char *s = text; *s;) {
         if (!ident_char(*s)) {
@@ -3170,8 +3199,8 @@ static void dense_slots(const char **text, const char **fields) {
  * say) takes no room. */
 static const char *used_fields(const char *fields, const char *text) {
     Buf b = {0};
-    Names named = {0};
-    names_scan(&named, text);
+    Names want = {0}, named = {0};
+    Vec lines = {0}, names = {0}; /* each field line and its name (NULL: none) */
     for (const char *q = fields; *q;) {
         const char *e = strchr(q, '\n');
         size_t len = e ? (size_t)(e - q) + 1 : strlen(q);
@@ -3185,9 +3214,15 @@ static const char *used_fields(const char *fields, const char *text) {
                 if (*t == '[' || *t == ';')
                     name = format("%.*s", (int)(t - r), r);
             }
-        if (!name || names_has(&named, name))
-            emit(&b, "%s", l);
+        vec_push(&lines, (void *)l);
+        vec_push(&names, (void *)name);
+        if (name)
+            names_put(&want, name, strlen(name));
     }
+    names_scan_in(&named, text, &want);
+    for (int i = 0; i < lines.len; i++)
+        if (!names.data[i] || names_has(&named, names.data[i]))
+            emit(&b, "%s", (const char *)lines.data[i]);
     return str(&b);
 }
 
@@ -3589,12 +3624,13 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     if (x->flushes) {
         decl_run(&decl, &wb, &fl);
     }
-    const char *head = format("%s%s", dirty, str(&decl)), *loop = format("%s%s%s%s", idle, sample, str(&fl), str(&wb));
-    if (uses(format("%s%s", head, loop), "st"))
-        head = format("    state *st = vst;\n%s", head);
+    const char *head = format("%s%s", dirty, str(&decl));
+    const char *parts[] = {head, idle, sample, str(&fl), str(&wb)}; /* what process holds */
+    if (uses_any(parts, 5, "st"))
+        parts[0] = head = format("    state *st = vst;\n%s", head);
     static const char *const decls[] = {"void *vst", "const double *const *in", "double *const *out"};
     static const char *const names[] = {"vst", "in", "out"};
-    set(t, "process_args", format("%s, int nframes", params_of(format("%s%s", head, loop), 3, decls, names)));
+    set(t, "process_args", format("%s, int nframes", params_of(parts, 5, 3, decls, names)));
     set(t, "hoist", head);
     set(t, "sample", sample);
     set(t, "idle", idle);
@@ -3623,7 +3659,8 @@ static void reset_holes(Ctx *x, Holes *t, const char *dirty, const char *rest, c
     const char *sw = *cases ? format("    for (int k = 0; k < n; k++) {\n        switch (ids[k]) {\n%s        }\n    }\n", cases) : "";
     const char *res = x->settle ? format("settle(st, %s) == 0 ? 0 : -1", x->nreact ? "react" : "NULL") : "0";
     const char *head = format("%s%s%s", react, dirty, kirch);
-    bool used = uses(format("%s%s%s", head, sw, res), "st");
+    const char *parts[] = {head, sw, res};
+    bool used = uses_any(parts, 3, "st");
     set(t, "set_ic_args", format("void *vst%s, int n, const int *ids%s, const double *values%s", used ? "" : " UNUSED",
                                  x->nic ? "" : " UNUSED", x->nic ? "" : " UNUSED"));
     set(t, "set_ic", used ? format("%s%s", st, head) : head);
@@ -3793,17 +3830,20 @@ static void emit_descriptors(Ctx *x, const char *targets, Buf *decl, Buf *ptrs) 
     }
 }
 
-/* The codes of templates/codes.def that the voice's text names, as the
- * enum the compiler has them in: each group (EDGE_, IC_, WGT_) whole, if
- * the text names one of it. */
-static const char *codes(const char *text) {
+/* The codes of templates/codes.def that the voice's text (and its
+ * waveguide kernels, wg) names, as the enum the compiler has them in:
+ * each group (EDGE_, IC_, WGT_) whole, if the text names one of it. */
+static const char *codes(const char *text, const char *wg) {
     static const char *const groups[] = {"EDGE_", "IC_", "WGT_"};
     static const char *const about[] = {"what an edge of a root adaptor is (root_edge[][0])",
                                         "how an element enters the initial-condition solve (ic_elem[][0])",
                                         "the columns of a waveguide's row of wg_tab"};
     Buf b = {0};
-    Names names = {0};
-    names_scan(&names, text);
+    Names names = {0}, all = {0};
+    for (int i = 0; i < NCODES; i++)
+        names_put(&all, all_codes[i].name, strlen(all_codes[i].name));
+    names_scan_in(&names, text, &all);
+    names_scan_in(&names, wg, &all);
     for (int g = 0; g < 3; g++) {
         size_t len = strlen(groups[g]);
         bool used = false;
@@ -3947,7 +3987,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     t.n -= 3;
     set(&t, "wg_kernels", str(&wgk));
     set(&t, "helpers", helpers(bare, str(&wgk)));
-    set(&t, "codes", codes(format("%s%s", bare, str(&wgk))));
+    set(&t, "codes", codes(bare, str(&wgk)));
     const char *ctext = one_blank(fill_with(tmpl_voice_c, &t));
     const char *fields = used_fields(state_fields(&x, nd), ctext);
     dense_slots(&ctext, &fields);
