@@ -576,7 +576,7 @@ cx_complex *cx_read_file(const char *path, const char *name, char *err, size_t e
         if (e == ENOMEM)
             snprintf(err, errlen, "%s: error: out of memory\n", path);
         else
-            snprintf(err, errlen, "%s: error: cannot read: %s\n", path, strerror(e));
+            snprintf(err, errlen, "%s: error: cannot read: %s\n", path, sx_file_strerror(e));
         return NULL;
     }
     cx_complex *K = cx_parse(path, buf, n, name, err, errlen);

@@ -365,10 +365,9 @@ static int f_output(wdrt_scene *S, const sx *f) {
             return ERR(file, "expected the SOFA file's name in double quotes, found a %s", kind_of(file));
         free(S->sofa);
         S->sofa = resolve_path(S, file->text);
-        FILE *t = fopen(S->sofa, "rb");
-        if (!t)
-            return ERR(file, "cannot read the HRTF file '%s'", S->sofa);
-        fclose(t);
+        int e = sx_file_ok(S->sofa);
+        if (e)
+            return ERR(file, "cannot read the HRTF file '%s': %s", S->sofa, sx_file_strerror(e));
     }
     return 0;
 }
@@ -916,13 +915,12 @@ static int complex_prop(wdrt_scene *S, sccomplex *c, const sx *p, cx_sound_opts 
 static int complex_load(wdrt_scene *S, sccomplex *c, const sx *file, const sx *list, const sx *start,
                         const cx_sound_opts *o) {
     char *path = resolve_path(S, file->text);
-    FILE *f = fopen(path, "rb");
-    if (!f) { /* said here, at the name; errors inside the file are the file's */
-        ERR(file, "cannot read the complex '%s': %s", path, strerror(errno));
+    int e = sx_file_ok(path);
+    if (e) { /* said here, at the name; errors inside the file are the file's */
+        ERR(file, "cannot read the complex '%s': %s", path, sx_file_strerror(e));
         free(path);
         return -1;
     }
-    fclose(f);
     c->K = cx_read_file(path, list ? list->text : NULL, S->err, S->errlen);
     free(path);
     if (!c->K)
@@ -1040,13 +1038,12 @@ static int body_ref(wdrt_scene *S, const sx *x, int *bi) {
 static int body_modes(wdrt_scene *S, scbody *b, const sx *p) {
     if (p->len == 2 && p->head->next->kind == SX_STR) {
         char *path = resolve_path(S, p->head->next->text);
-        FILE *f = fopen(path, "rb");
-        if (!f) {
-            ERR(p->head->next, "cannot read the modes '%s': %s", path, strerror(errno));
+        int e = sx_file_ok(path);
+        if (e) {
+            ERR(p->head->next, "cannot read the modes '%s': %s", path, sx_file_strerror(e));
             free(path);
             return -1;
         }
-        fclose(f);
         b->modes = xcalloc(SURF_MAX_MODES_FILE, sizeof *b->modes);
         int np = 0;
         b->nmodes = surf_modes_read(path, b->modes, SURF_MAX_MODES_FILE, &np, S->err, S->errlen);

@@ -53,6 +53,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 /* A test builds this file with allocators that fail on purpose. */
 #ifndef SX_MALLOC
@@ -726,26 +728,57 @@ sx_doc *sx_parse(const char *path, const char *text, size_t len, char *err, size
     return d;
 }
 
+int sx_file_ok(const char *path)
+{
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return errno ? errno : ENOENT;
+    if (S_ISDIR(st.st_mode))
+        return EISDIR;
+    if (!S_ISREG(st.st_mode))
+        return EINVAL;
+    if (access(path, R_OK) != 0)
+        return errno ? errno : EACCES;
+    return 0;
+}
+
+const char *sx_file_strerror(int e)
+{
+    if (e == EINVAL)
+        return "not a regular file";
+    if (e == EFBIG)
+        return "larger than 256 MiB";
+    return strerror(e);
+}
+
 char *sx_slurp(const char *path, size_t *len, int *e)
 {
+    if ((*e = sx_file_ok(path)))
+        return NULL;
     FILE *f = fopen(path, "rb");
     if (!f) {
-        *e = errno;
+        *e = errno ? errno : EIO;
         return NULL;
     }
     size_t cap = 0, n = 0;
     char *buf = NULL;
     for (;;) {
         if (n + 1 >= cap) { /* room for the bytes and a NUL after them */
-            char *b = cap > SIZE_MAX / 2 ? NULL : SX_REALLOC(buf, cap ? 2 * cap : 4096);
+            if (cap >= SX_MAX_FILE + 2) { /* a byte past the bound was read */
+                *e = EFBIG;
+                break;
+            }
+            size_t c = cap ? 2 * cap : 4096;
+            c = c < SX_MAX_FILE + 2 ? c : SX_MAX_FILE + 2;
+            char *b = SX_REALLOC(buf, c);
             if (!b) {
                 *e = ENOMEM;
                 break;
             }
             buf = b;
-            cap = cap ? 2 * cap : 4096;
+            cap = c;
         }
-        size_t k = fread(buf + n, 1, cap - n, f);
+        size_t k = fread(buf + n, 1, cap - n - 1, f);
         n += k;
         if (k == 0) {
             *e = ferror(f) ? (errno ? errno : EIO) : 0;
@@ -773,7 +806,7 @@ sx_doc *sx_read_file(const char *path, char *err, size_t errlen)
         if (e == ENOMEM)
             file_error(path, err, errlen, "out of memory");
         else
-            file_error(path, err, errlen, "cannot read: %s", strerror(e));
+            file_error(path, err, errlen, "cannot read: %s", sx_file_strerror(e));
         return NULL;
     }
     sx_doc *d = sx_parse(path, text, len, err, errlen);

@@ -77,13 +77,30 @@ SX_HIDDEN sx_doc *sx_parse(const char *path, const char *text, size_t len, char 
                            size_t errlen);
 
 /* Reads the file and parses it; a file that cannot be read gives
- * "PATH: error: cannot read: <strerror>\n".  Allocates; not real-time safe. */
+ * "PATH: error: cannot read: <sx_file_strerror>\n".  Allocates; not real-time safe. */
 SX_HIDDEN sx_doc *sx_read_file(const char *path, char *err, size_t errlen);
+
+/* The largest file the runtime reads as text: scenes, trees and modes
+ * are hand-written, a complex's facet list may run to tens of megabytes,
+ * and a bound keeps a mistaken argument from eating memory. */
+#define SX_MAX_FILE ((size_t)256 << 20)
 
 /* The whole file as a malloc'ed, NUL-terminated buffer of *len bytes
  * (free it with free()); NULL with *err = an errno value (ENOMEM when
- * memory ran out) if it cannot be read.  Allocates; not real-time safe. */
+ * memory ran out, EFBIG past SX_MAX_FILE, or sx_file_ok's) if it cannot
+ * be read.  Allocates; not real-time safe. */
 SX_HIDDEN char *sx_slurp(const char *path, size_t *len, int *err);
+
+/* 0 if path names a regular file this process may read, else an errno
+ * value: EISDIR for a directory, EINVAL for any other file that is not
+ * regular (a device such as /dev/zero, a FIFO: none has an end worth
+ * waiting for, and opening a FIFO blocks), or stat's or access's error.
+ * Checked before anything opens the file. */
+SX_HIDDEN int sx_file_ok(const char *path);
+
+/* The text of such an errno value: strerror's, but for EINVAL ("not a
+ * regular file") and EFBIG (the bound). */
+SX_HIDDEN const char *sx_file_strerror(int e);
 
 /* Frees the doc and every node and text of it.  NULL is ignored. */
 SX_HIDDEN void sx_free(sx_doc *d);

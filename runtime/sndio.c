@@ -5,6 +5,7 @@
  * sees sndfile.h.
  */
 #include "wdrt.h"
+#include "sexp.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -70,12 +71,11 @@ wdrt_result wdrt_wav_read(const char *path, int *nch, double *fs,
     *nch = 0;
     *fs = 0;
 
-    FILE *probe = fopen(path, "rb");
-    if (!probe) {
-        perror(path);
+    int e = sx_file_ok(path); /* a device or a FIFO would never end, or block */
+    if (e) {
+        fprintf(stderr, "%s: %s\n", path, sx_file_strerror(e));
         return WDRT_IO;
     }
-    fclose(probe);
 
     SF_INFO info = {0};
     SNDFILE *f = sf_open(path, SFM_READ, &info);

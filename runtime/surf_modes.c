@@ -151,7 +151,7 @@ int surf_modes_read(const char *path, surf_mode *modes, int max, int *npickups, 
         if (e == ENOMEM)
             snprintf(err, errlen, "%s: error: out of memory\n", path);
         else
-            snprintf(err, errlen, "%s: error: cannot read: %s\n", path, strerror(e));
+            snprintf(err, errlen, "%s: error: cannot read: %s\n", path, sx_file_strerror(e));
         return -1;
     }
     int r = surf_modes_parse(path, buf, n, modes, max, npickups, err, errlen);

@@ -819,9 +819,7 @@ static const def *lookup_def(rd *R, const sx *n) {
         char rel[256];
         snprintf(rel, sizeof rel, "lib/%s.tt", n->text);
         char *p = join(R->dir, rel);
-        FILE *f = p ? fopen(p, "rb") : NULL;
-        if (f) {
-            fclose(f);
+        if (p && !sx_file_ok(p)) {
             if (load(R->F, p, R->doc, n, R->err, R->errlen)) {
                 free(p);
                 return NULL;
@@ -1009,12 +1007,11 @@ static tt_node *special(rd *R, const sx *x, tt_op op, int depth) {
         if (!(y->s = join(R->dir, a->text)))
             goto fail;
         {
-            FILE *f = fopen(y->s, "rb");
-            if (!f) {
-                RERR(R, a, "cannot read the sound file '%s': %s", y->s, strerror(errno));
+            int e = sx_file_ok(y->s);
+            if (e) {
+                RERR(R, a, "cannot read the sound file '%s': %s", y->s, sx_file_strerror(e));
                 goto fail;
             }
-            fclose(f);
         }
         if (nargs == 2 && !(y->a[0] = expr(R, a->next, depth + 1)))
             goto fail;
@@ -1123,12 +1120,11 @@ static tt_node *special(rd *R, const sx *x, tt_op op, int depth) {
                     goto fail;
             }
         }
-        FILE *f = fopen(y->s, "rb");
-        if (!f) {
-            RERR(R, a, "cannot read the netlist '%s': %s", y->s, strerror(errno));
+        int e = sx_file_ok(y->s);
+        if (e) {
+            RERR(R, a, "cannot read the netlist '%s': %s", y->s, sx_file_strerror(e));
             goto fail;
         }
-        fclose(f);
         return y;
     }
     case TT_IMPORTANCE:
@@ -1518,10 +1514,9 @@ static int load(tt_file *F, const char *path, const sx_doc *from, const sx *at, 
     if (push((void **)&F->seen, F->nseen, sizeof *F->seen) || !(F->seen[F->nseen] = dupstr(path)))
         return sx_error(from, at, err, errlen, "out of memory");
     F->nseen++;
-    FILE *fp = fopen(path, "rb");
-    if (!fp)
-        return sx_error(from, at, err, errlen, "cannot read '%s': %s", path, strerror(errno));
-    fclose(fp);
+    int e = sx_file_ok(path);
+    if (e)
+        return sx_error(from, at, err, errlen, "cannot read '%s': %s", path, sx_file_strerror(e));
     sx_doc *d = sx_read_file(path, err, errlen);
     if (!d)
         return -1;
@@ -1701,11 +1696,10 @@ tt_tree *tt_tree_inline(tt_file *defs, const sx_doc *d, const sx *x, const char 
     tt_tree *t = NULL;
     if (x->kind == SX_STR) { /* a .tt file: its last tree */
         char *p = join(dir, x->text);
-        FILE *f = p ? fopen(p, "rb") : NULL;
-        if (!f)
-            sx_error(d, x, err, errlen, "cannot read the tree file '%s': %s", p ? p : x->text, strerror(errno));
+        int e = p ? sx_file_ok(p) : ENOMEM;
+        if (e)
+            sx_error(d, x, err, errlen, "cannot read the tree file '%s': %s", p ? p : x->text, sx_file_strerror(e));
         else {
-            fclose(f);
             tt_file *g = tt_file_read(p, NULL, 0, err, errlen);
             if (g)
                 t = tt_tree_clone(tt_file_tree(g, -1));

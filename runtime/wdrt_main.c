@@ -237,7 +237,7 @@ static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *li
     hash h = {0xcbf29ce484222325ull};
     hash_bytes(&h, "wdrt-voice-3", 12); /* the version of how a voice is built here */
     if (hash_netlist(&h, netlist, 0) != 0) {
-        fprintf(stderr, "wdrt: error: cannot read netlist '%s': %s\n", netlist, strerror(errno));
+        fprintf(stderr, "wdrt: error: cannot read netlist '%s': %s\n", netlist, sx_file_strerror(errno));
         return EXIT_INPUT;
     }
     size_t n;

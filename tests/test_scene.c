@@ -172,6 +172,14 @@ static void test_cli_cache(void **s) {
              g_dir, g_dir);
     assert_int_equal(tl_system(cmd), 1);
     assert_int_equal(tl_system("bin/wdrt --help >/dev/null"), 0);
+    /* a device or a FIFO is refused at once, for each reader (timeout: 124) */
+    assert_int_equal(tl_system("timeout 60 bin/wdrt render /dev/zero 2>/dev/null"), 1);
+    assert_int_equal(tl_system("timeout 60 bin/wdrt tree /dev/zero 2>/dev/null"), 1);
+    assert_int_equal(tl_system("timeout 60 bin/wdrt complex /dev/zero 2>/dev/null"), 1);
+    write_file("dev.wds", "(body b (modes \"/dev/zero\") (mass 1) (pos 0 0 0))\n");
+    snprintf(cmd, sizeof cmd, "timeout 60 bin/wdrt render %s/dev.wds -o %s/x.wav 2>&1 | grep -q "
+             "\"cannot read the modes '/dev/zero': not a regular file\"", g_dir, g_dir);
+    assert_int_equal(tl_system(cmd), 0);
 }
 
 /* Without (length), a scene lasts until its last event has rung down:

@@ -29,6 +29,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include <sys/stat.h>
+#include <errno.h>
 
 #include "testlib.h"
 
@@ -560,6 +562,20 @@ static void files(void **state)
                         "/nonexistent/x.wds: error: cannot read: No such file or directory\n");
     assert_null(sx_read_file("tests", err, sizeof err));
     assert_string_equal(err, "tests: error: cannot read: Is a directory\n");
+    /* files that never end or block as they open are refused before it */
+    assert_null(sx_read_file("/dev/zero", err, sizeof err));
+    assert_string_equal(err, "/dev/zero: error: cannot read: not a regular file\n");
+    char fifo[] = "/tmp/test_sexp_fifo_XXXXXX";
+    int fdd = mkstemp(fifo);
+    assert_true(fdd >= 0);
+    close(fdd);
+    unlink(fifo);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    size_t flen;
+    int fe = 0;
+    assert_null(sx_slurp(fifo, &flen, &fe)); /* would block in fopen */
+    assert_int_equal(fe, EINVAL);
+    unlink(fifo);
 
     char path[] = "/tmp/test_sexp_XXXXXX";
     int fd = mkstemp(path);
