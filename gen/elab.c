@@ -333,16 +333,6 @@ static const char *resolve_path(SrcFile *from, const char *name) {
     return name;
 }
 
-/* Why read_file refused a file it could open, from its errno, or NULL for
- * an error of the system (no such file, no permission). */
-static const char *refused_why(int err) {
-    if (err == EINVAL)
-        return "is not a regular file";
-    if (err == EFBIG)
-        return "is larger than 16 MiB";
-    return NULL;
-}
-
 static void include(Elab *E, Line *l, BlockDef *into) {
     if (l->nargs != 1 || (l->args[0].kind != VAL_STRING && l->args[0].kind != VAL_NAME))
         error_at(l->pos, "expected a file name after .include");
@@ -356,7 +346,7 @@ static void include(Elab *E, Line *l, BlockDef *into) {
     size_t len;
     char *text = read_file(path, &len);
     if (!text) {
-        const char *why = refused_why(errno);
+        const char *why = read_file_refused(errno);
         if (why)
             error_at(l->args[0].pos, "included file '%s' %s", l->args[0].name, why);
         error_at(l->args[0].pos, "cannot read included file '%s'", l->args[0].name);
@@ -1822,7 +1812,7 @@ Circuit *wdc_elaborate(const char *path) {
     size_t len;
     char *text = read_file(path, &len);
     if (!text) {
-        const char *why = refused_why(errno);
+        const char *why = read_file_refused(errno);
         FILE *out = diag.out ? diag.out : stderr;
         if (why)
             fprintf(out, "%s: error: the netlist %s\n", path, why);

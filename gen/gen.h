@@ -89,6 +89,10 @@ void buf_reserve(Buf *b, size_t n);             /* room for n more bytes */
  * arena (*len its length); NULL with errno set otherwise (EINVAL: not a
  * regular file, EFBIG: too large). */
 char *read_file(const char *path, size_t *len);
+/* Why read_file refused a file it could open, from its errno ("is not a
+ * regular file", "is larger than 16 MiB"), or NULL for an error of the
+ * system (no such file, no permission). */
+const char *read_file_refused(int err);
 
 void error_at(SrcPos pos, const char *fmt, ...)
     __attribute__((format(printf, 2, 3), noreturn));

@@ -389,7 +389,10 @@ static bool ev_line(const EventCtx *x, int line, char *text, Event *e) {
 static Event *read_events(const char *path, EventCtx *x, int *nev) {
     char *text = read_file(path, NULL);
     if (!text) {
-        fprintf(stderr, "wdc: error: cannot read events file '%s'\n", path);
+        int e = errno;
+        const char *why = read_file_refused(e);
+        fprintf(stderr, "wdc: error: cannot read events file '%s': %s%s\n", path, why ? "it " : "",
+                why ? why : strerror(e));
         exit(EXIT_USAGE);
     }
     x->file = srcfile_new(path, text);

@@ -71,6 +71,14 @@ char *format(const char *fmt, ...) {
  * mistaken argument (a device, a log, a sound file) from eating memory. */
 #define MAX_FILE_BYTES (16u << 20)
 
+const char *read_file_refused(int err) {
+    if (err == EINVAL)
+        return "is not a regular file";
+    if (err == EFBIG)
+        return "is larger than 16 MiB";
+    return NULL;
+}
+
 /* Reads a whole regular file of at most MAX_FILE_BYTES into the arena,
  * NUL-terminated.  Returns NULL with errno set if it cannot: EINVAL for
  * anything but a regular file (a device such as /dev/zero, a FIFO, a

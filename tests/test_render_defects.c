@@ -93,6 +93,9 @@ static void test_event_times(void **s) {
     /* the last moment of the render is still in it */
     ev = tl_write_file(dir, "end.events", "0.1 set R 1k\n");
     assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --seconds 0.1 --events %s", dir, ev)), 0);
+    /* an events file that is a device is refused, and says why */
+    assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --events /dev/zero", dir)), 2);
+    assert_err_has("cannot read events file '/dev/zero': it is not a regular file");
 }
 
 /* Non-finite or absurd input specs are usage errors. */
