@@ -155,6 +155,8 @@ static Opts parse_args(int argc, char **argv) {
         usage_error("%s", "--csv, --events, --input and --seconds need --render");
     if (o.lv2 && (o.render || o.has_outdir))
         usage_error("%s", "--lv2 writes only the bundle: it does not combine with -o or --render");
+    if (o.check && (o.render || o.lv2 || o.has_outdir))
+        usage_error("%s", "--check writes nothing: it does not combine with -o, --render or --lv2");
     return o;
 }
 
@@ -781,7 +783,7 @@ int main(int argc, char **argv) {
         wdf_dot(w, f);
         fclose(f);
     }
-    if (o.check || ((o.dot || o.tableau) && !o.render))
+    if (o.check || ((o.dot || o.tableau) && !o.render && !o.has_outdir)) /* -o DIR: the voice as well */
         return 0;
     EmitOpts eo = {.single = o.single, .energy = o.energy, .no_skip = o.no_skip, .batch = o.batch, .outdir = o.outdir, .solver = o.solver,
                    .table = o.table, .tol = o.tol, .fast_tol = o.fast_tol, .maxit = o.maxit};

@@ -1043,6 +1043,17 @@ static void test_cli_exit_status(void **state) {
     free(out);
     assert_int_equal(run_wdc("--check", &out), 2);
     free(out);
+    /* --check writes nothing: a render or a folder asked with it is refused, not dropped */
+    assert_int_equal(run_wdc("netlists/rc_lowpass.wdn --check --render /tmp/never.wav", &out), 2);
+    assert_non_null(strstr(out, "--check writes nothing"));
+    free(out);
+    /* --dot alone writes no voice; with -o DIR, the voice as well */
+    char dargs[512], dpath[512];
+    snprintf(dargs, sizeof dargs, "netlists/rc_lowpass.wdn --dot %s/rc.dot -o %s/dotvoice", tmpdir, tmpdir);
+    assert_int_equal(run_wdc(dargs, &out), 0);
+    free(out);
+    snprintf(dpath, sizeof dpath, "%s/dotvoice/rc_lowpass.c", tmpdir);
+    assert_int_equal(access(dpath, R_OK), 0);
     assert_int_equal(run_wdc("netlists/rc_lowpass.wdn netlists/msd.wdn --check", &out), 2);
     free(out);
     const char *bad = write_tmp("bad_cli.wdn", "R1 a 0 4.7q\n");
