@@ -334,6 +334,10 @@ static void ev_set(const EventCtx *x, int line, char **tok, const int *col, int 
     if (e->param < 0)
         error_at(ev_pos(x, line, col[2]), "unknown param '%s'", tok[2]);
     e->value = ev_number(x, line, col[3], tok[3]);
+    const Param *pr = &x->c->params[e->param];
+    if (e->value < pr->min || e->value > pr->max) /* the voice clamps it: say so */
+        warn_at(ev_pos(x, line, col[3]), "%s = %g lies outside its range [%g, %g]: the voice holds it at %g", pr->name,
+                e->value, pr->min, pr->max, e->value < pr->min ? pr->min : pr->max);
 }
 
 /* TIME ic TARGET=VALUE ...  (at most 8 targets) */

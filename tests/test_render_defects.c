@@ -93,6 +93,11 @@ static void test_event_times(void **s) {
     /* the last moment of the render is still in it */
     ev = tl_write_file(dir, "end.events", "0.1 set R 1k\n");
     assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --seconds 0.1 --events %s", dir, ev)), 0);
+    /* a value past a param's range is held at the bound by the voice: a warning says so */
+    ev = tl_write_file(dir, "range.events", "0.01 set R 1e9\n");
+    assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --seconds 0.1 --events %s", dir, ev)), 0);
+    assert_err_has(format("%s:1:12: warning: R = 1e+09 lies outside its range [100, 100000]: the voice holds it "
+                          "at 100000", ev));
     /* an events file that is a device is refused, and says why */
     assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --events /dev/zero", dir)), 2);
     assert_err_has("cannot read events file '/dev/zero': it is not a regular file");
