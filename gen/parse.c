@@ -399,6 +399,25 @@ static Value node_value(Parser *P) {
 }
 
 /* element = NAME node{n} arg* keyval* | KEYWORD NAME node{n} arg* keyval* */
+
+/* A deck's element whose SPICE letter names a device the compiler does
+ * not model: said as SPICE names it, with the letters a deck may use. */
+static void spice_unsupported(const Token *h) {
+    static const char *const what[26] = {
+        ['A' - 'A'] = "an XSPICE code model", ['B' - 'A'] = "a behavioural source",
+        ['F' - 'A'] = "a current-controlled current source", ['H' - 'A'] = "a current-controlled voltage source",
+        ['J' - 'A'] = "a JFET", ['M' - 'A'] = "a MOSFET", ['N' - 'A'] = "a numerical device",
+        ['O' - 'A'] = "a lossy transmission line", ['P' - 'A'] = "a coupled multiconductor line",
+        ['S' - 'A'] = "a voltage-controlled switch", ['U' - 'A'] = "a uniform RC line",
+        ['W' - 'A'] = "a current-controlled switch", ['Y' - 'A'] = "a transmission line (Y)",
+        ['Z' - 'A'] = "a MESFET",
+    };
+    int c = toupper((unsigned char)h->text[0]);
+    if (c >= 'A' && c <= 'Z' && what[c - 'A'])
+        error_at(h->pos, "'%c%.*s' is %s, which decks here do not take (they take R, C, L, V, I, D, Q, E, G, "
+                         "K, T and X)", c, h->len - 1, h->text + 1, what[c - 'A']);
+}
+
 static void element(Parser *P, Line *l) {
     Token *h = P->tok;
     int kind = block_by_keyword(h->text, h->len);
@@ -432,6 +451,8 @@ static void element(Parser *P, Line *l) {
         return;
     } else {
         kind = h->kind == TK_IDENT ? block_by_letter(h->text[0]) : -1;
+        if (kind < 0 && P->file->spice && h->kind == TK_IDENT)
+            spice_unsupported(h);
         if (kind < 0)
             error_at(h->pos, "unknown element kind '%.*s'", h->len, h->text);
         l->name = l->head;

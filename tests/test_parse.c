@@ -775,6 +775,10 @@ static void test_deck(void **state) {
     expect_deck_error("title\nV1 a 0 1\nR1 a 0 1k\n.tran 0 1\n.end\n",
                       "t.cir:4:7: error: .tran's step gives a rate of inf Hz; it must be from 1 Hz to 10 MHz");
     expect_deck_error("title\n.control\nrun\n", "t.cir:2:1: error: '.control' without '.endc'");
+    /* a SPICE device the compiler does not model is named as SPICE names it */
+    expect_deck_error("title\nV1 a 0 1\nR1 a b 1k\nM1 b a 0 0 nmos\n.end\n",
+                      "t.cir:4:1: error: 'M1' is a MOSFET, which decks here do not take (they take R, C, L, V, I, D, "
+                      "Q, E, G, K, T and X)");
     expect_deck_error("title\n.model d1 d(is=1n n=2\n", "t.cir:2:12: error: unclosed '(' in .model");
     assert_true(is_spice_path("a/b.CIR") && is_spice_path("x.sp") && is_spice_path("x.spice") &&
                 is_spice_path("x.net") && !is_spice_path("x.wdn") && !is_spice_path("net.d/x"));
