@@ -1775,8 +1775,13 @@ static int bind_param(wdrt_scene *S, const wdv_class *cls, scparam *p) {
         if (!strcmp(cls->params[i].name, p->name))
             p->id = i;
     }
-    if (p->id >= 0)
+    if (p->id >= 0) {
+        const wdv_param *d = &cls->params[p->id];
+        if (!p->val.curve && !p->val.motion && (p->val.v < d->min || p->val.v > d->max)) /* the voice clamps it */
+            sx_warning(S->doc, p->at, S->err, S->errlen, "%s = %g lies outside its range [%g, %g]: the voice holds it at %g",
+                       p->name, p->val.v, d->min, d->max, p->val.v < d->min ? d->min : d->max);
         return 0;
+    }
     if (cls->n_params == 0)
         return ERR(p->at, "unknown param '%s': voice %s has no params", p->name, cls->name);
     return unknown(S, p->at, "param", p->name, names, cls->n_params > 64 ? 64 : cls->n_params);
@@ -1806,6 +1811,8 @@ wdrt_result wdrt_scene_bind(wdrt_scene *S, int i, const wdv_class *cls, char *er
     if (!S || i < 0 || i >= S->nnl || !cls)
         return WDRT_INVALID_ARGS;
     S->err = err, S->errlen = errlen;
+    if (err && errlen)
+        err[0] = '\0'; /* on success, the warnings */
     if (S->nl[i].vi < 0)
         return bind_body(S, &S->bodies[-1 - S->nl[i].vi], cls) ? WDRT_SYNTAX : WDRT_OK;
     if (S->nl[i].k >= 0) {

@@ -207,13 +207,15 @@ static void line_bounds(const sx_doc *d, int line, const char **s, const char **
  * source line indented by two, and a caret under the column; the caret
  * line copies the source's tabs so the caret lines up in a terminal. */
 static void vreport(const sx_doc *d, int line, int col, char *err, size_t errlen,
-                    const char *fmt, va_list ap)
+                    const char *kind, const char *fmt, va_list ap)
 {
     if (!err || !errlen)
         return;
-    Out o = {err, errlen, 0};
-    err[0] = '\0';
-    out_f(&o, "%s:%d:%d: error: ", d->path, line, col);
+    /* an error replaces what err held; a warning is added to it */
+    size_t at = strcmp(kind, "error") ? strnlen(err, errlen - 1) : 0;
+    Out o = {err, errlen, at};
+    err[at] = '\0';
+    out_f(&o, "%s:%d:%d: %s: ", d->path, line, col, kind);
     out_vf(&o, fmt, ap);
     const char *s, *e;
     line_bounds(d, line, &s, &e);
@@ -229,7 +231,7 @@ int sx_error_at(const sx_doc *d, int line, int col, char *err, size_t errlen,
     assert(d);
     va_list ap;
     va_start(ap, fmt);
-    vreport(d, line, col, err, errlen, fmt, ap);
+    vreport(d, line, col, err, errlen, "error", fmt, ap);
     va_end(ap);
     return -1;
 }
@@ -241,11 +243,20 @@ int sx_error(const sx_doc *d, const sx *at, char *err, size_t errlen, const char
     va_list ap;
     va_start(ap, fmt);
     if (at)
-        vreport(d, at->line, at->col, err, errlen, fmt, ap);
+        vreport(d, at->line, at->col, err, errlen, "error", fmt, ap);
     else
         vfile_error(d->path, err, errlen, fmt, ap);
     va_end(ap);
     return -1;
+}
+
+void sx_warning(const sx_doc *d, const sx *at, char *err, size_t errlen, const char *fmt, ...)
+{
+    assert(d && at);
+    va_list ap;
+    va_start(ap, fmt);
+    vreport(d, at->line, at->col, err, errlen, "warning", fmt, ap);
+    va_end(ap);
 }
 
 /* ---- characters -------------------------------------------------------- */
@@ -421,7 +432,7 @@ static int syntax_error(Parser *P, int line, int col, const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    vreport(P->doc, line, col, P->err, P->errlen, fmt, ap);
+    vreport(P->doc, line, col, P->err, P->errlen, "error", fmt, ap);
     va_end(ap);
     return -1;
 }

@@ -111,6 +111,10 @@ SX_HIDDEN void sx_free(sx_doc *d);
  * can `return sx_error(...)`.  Does not allocate. */
 SX_HIDDEN int sx_error(const sx_doc *d, const sx *at, char *err, size_t errlen,
                        const char *fmt, ...) SX_PRINTF(5, 6);
+/* A warning at node `at` in the same form ("PATH:LINE:COL: warning:
+ * MESSAGE", the line and a caret), added after what err holds. */
+SX_HIDDEN void sx_warning(const sx_doc *d, const sx *at, char *err, size_t errlen,
+                          const char *fmt, ...) SX_PRINTF(5, 6);
 /* The same at a line and column (1-based; out-of-range positions are
  * printed as given, with an empty source line past the end). */
 SX_HIDDEN int sx_error_at(const sx_doc *d, int line, int col, char *err, size_t errlen,

@@ -484,7 +484,9 @@ const char *wdrt_scene_voice_name(const wdrt_scene *s, int i);
 const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i);
 
 /* Gives voice i its class; checks every param and strike target the scene
- * names for it (WDRT_SYNTAX with the position in err). */
+ * names for it (WDRT_SYNTAX with the position in err).  On success err
+ * holds the warnings, if any ("FILE:LINE:COL: warning: ...": a param's
+ * value past its range, which the voice holds at the bound), else "". */
 wdrt_result wdrt_scene_bind(wdrt_scene *s, int i, const wdv_class *cls,
                             char *err, size_t errlen);
 

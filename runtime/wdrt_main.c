@@ -390,10 +390,10 @@ static int cmd_render(int argc, char **argv) {
     int nv = wdrt_scene_nvoices(s), status = 0;
     wdrt_voice_lib *libs = calloc((size_t)nv + 1, sizeof *libs);
     for (int i = 0; i < nv && !status; i++) {
-        if (!(status = cached_voice(wdrt_scene_voice_netlist(s, i), wdc, &libs[i])) &&
-            wdrt_scene_bind(s, i, libs[i].cls, err, sizeof err) != WDRT_OK) {
-            fputs(err, stderr);
-            status = EXIT_INPUT;
+        if (!(status = cached_voice(wdrt_scene_voice_netlist(s, i), wdc, &libs[i]))) {
+            if (wdrt_scene_bind(s, i, libs[i].cls, err, sizeof err) != WDRT_OK)
+                status = EXIT_INPUT;
+            fputs(err, stderr); /* the error, or the warnings */
         }
     }
     double *frames = NULL, rate = 0;

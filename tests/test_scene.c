@@ -384,6 +384,30 @@ static void test_bind_errors(void **s) {
     }
 }
 
+/* A param's value past its range binds, with a warning at each place
+ * (the voice holds it at the bound); one within it, or a curve, none. */
+static void test_bind_warnings(void **s) {
+    (void)s;
+    const char *path = strdup(write_file("w.wds", "(voice m \"x.wdn\" (param hard 1e9))\n"
+                                                  "(at 1 (set m hard 0.01))\n(at 2 (set m hard 2))\n"
+                                                  "(at 3 (set m hard (curve (0 1) (1 20))))\n"));
+    char err[2048] = "x";
+    wdrt_scene *sc = NULL;
+    assert_int_equal(wdrt_scene_load(path, &sc, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_bind(sc, 0, g_mallet.cls, err, sizeof err), WDRT_OK);
+    char want[4096];
+    snprintf(want, sizeof want,
+             "%s:1:25: warning: hard = 1e+09 lies outside its range [0.1, 10]: the voice holds it at 10\n"
+             "  (voice m \"x.wdn\" (param hard 1e9))\n"
+             "                          ^\n"
+             "%s:2:14: warning: hard = 0.01 lies outside its range [0.1, 10]: the voice holds it at 0.1\n"
+             "  (at 1 (set m hard 0.01))\n"
+             "               ^\n", path, path);
+    assert_string_equal(err, want);
+    wdrt_scene_free(sc);
+    free((void *)path);
+}
+
 /* ---- fuzz ---- */
 
 static const char *const g_seeds[] = {
@@ -501,6 +525,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache),   cmocka_unit_test(test_rings_down),
         cmocka_unit_test(test_gain_curve),  cmocka_unit_test(test_load_errors), cmocka_unit_test(test_bind_errors),
+        cmocka_unit_test(test_bind_warnings),
         cmocka_unit_test(test_fuzz),        cmocka_unit_test(test_placed_complex),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
