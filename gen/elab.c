@@ -1601,12 +1601,13 @@ static void check_values(Elab *E) {
  * ignore what is fed to it. */
 static void check_inputs(Elab *E) {
     const Circuit *c = E->c;
+    bool *read = arena_alloc(sizeof(bool) * (size_t)(E->inputs.len + 1));
+    for (int k = 0; k < c->nelems; k++)
+        if (c->elems[k].input >= 0)
+            read[c->elems[k].input] = true;
     for (int i = 0; i < E->inputs.len; i++) {
         const SrcPos *pos = E->input_pos.data[i];
-        bool read = false;
-        for (int k = 0; k < c->nelems && !read; k++)
-            read = c->elems[k].input == i;
-        if (pos && !read)
+        if (pos && !read[i])
             warn_at(*pos, "input '%s' drives nothing: no source reads it", (const char *)E->inputs.data[i]);
     }
 }

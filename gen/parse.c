@@ -398,8 +398,6 @@ static Value node_value(Parser *P) {
     return (Value){.kind = VAL_NAME, .pos = t->pos, .name = tok_str(t)};
 }
 
-/* element = NAME node{n} arg* keyval* | KEYWORD NAME node{n} arg* keyval* */
-
 /* A deck's element whose SPICE letter names a device the compiler does
  * not model: said as SPICE names it, with the letters a deck may use. */
 static void spice_unsupported(const Token *h) {
@@ -418,6 +416,7 @@ static void spice_unsupported(const Token *h) {
                          "K, T and X)", c, h->len - 1, h->text + 1, what[c - 'A']);
 }
 
+/* element = NAME node{n} arg* keyval* | KEYWORD NAME node{n} arg* keyval* */
 static void element(Parser *P, Line *l) {
     Token *h = P->tok;
     int kind = block_by_keyword(h->text, h->len);
