@@ -1750,6 +1750,10 @@ void wdrt_scene_free(wdrt_scene *S) {
 /* The host sees the netlists the scene needs: its voices' and those of
  * voice nodes of its trees (S->nl). */
 int wdrt_scene_nvoices(const wdrt_scene *s) { return s ? s->nnl : 0; }
+int wdrt_scene_channels(const wdrt_scene *s) { return s ? s->channels : 0; }
+double wdrt_scene_rate(const wdrt_scene *s, const wdrt_render_opts *o) {
+    return o && o->rate > 0 ? o->rate : s ? s->rate : 0;
+}
 const char *wdrt_scene_voice_name(const wdrt_scene *s, int i) {
     if (!s || i < 0 || i >= s->nnl)
         return NULL;
@@ -2420,7 +2424,7 @@ static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o
                        double **pv) {
     memset(R, 0, sizeof *R);
     R->S = S;
-    R->fs = o && o->rate > 0 ? o->rate : S->rate;
+    R->fs = wdrt_scene_rate(S, o);
     R->tc = xcalloc((size_t)S->nvoices + 1, sizeof *R->tc);
     for (int i = 0; i < S->nvoices; i++) {
         const scvoice *v = &S->voices[i];
@@ -2599,11 +2603,16 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     uint64_t n = secs > 0 ? frame_of(secs, R.fs) : 0, last = last_frame(&R);
     uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0, alloc = 0;
     const uint64_t chunk = 4096;
+    const int sink = o && o->sink;
+    if (sink && !(out = malloc(sizeof(double) * (size_t)chunk * (size_t)S->channels))) {
+        res = WDRT_OUT_OF_MEMORY;
+        goto done;
+    }
     wdrt_engine_stats st;
     while (t < cap) {
         uint64_t want = t + chunk < cap ? t + chunk : cap;
         uint64_t end = post_due(&R, t, sw_post(bodies, &tl, t, want));
-        if (end > alloc) {
+        if (!sink && end > alloc) {
             alloc = end * 2 < cap ? end * 2 : cap;
             double *p = realloc(out, sizeof(double) * (size_t)alloc * (size_t)S->channels);
             if (!p) {
@@ -2612,7 +2621,12 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
             }
             out = p;
         }
-        wdrt_engine_process(R.e, out + t * (uint64_t)S->channels, (uint32_t)(end - t));
+        double *at = sink ? out : out + t * (uint64_t)S->channels; /* a run is at most a chunk */
+        wdrt_engine_process(R.e, at, (uint32_t)(end - t));
+        if (sink && o->sink(at, (long)(end - t), S->channels, o->sink_user)) {
+            res = WDRT_IO;
+            goto done;
+        }
         t = end;
         wdrt_engine_get_stats(R.e, &st);
         if (o && o->progress)
@@ -2624,12 +2638,13 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     wdrt_engine_get_stats(R.e, &st);
     if (stats)
         *stats = st;
-    *frames = out;
+    *frames = sink ? NULL : out;
     *nframes = (long)t;
     *nch = S->channels;
     if (rate)
         *rate = R.fs;
-    out = NULL;
+    if (!sink)
+        out = NULL;
     res = WDRT_OK;
 done:
     free(out);

@@ -10,55 +10,95 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include <sndfile.h>
 
 /* Frames per libsndfile call when writing. */
 #define WDRT_IO_CHUNK 65536
 
-wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
-                           const double *frames, long nframes)
-{
-    if (!path || nch <= 0 || nframes < 0 || (nframes > 0 && !frames) ||
-        !(fs >= 1.0) || fs > 2147483647.0)
-        return WDRT_INVALID_ARGS;
+struct wdrt_wav_out {
+    SNDFILE *f;
+    char *path;
+    int nch;
+};
 
+wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out)
+{
+    if (!path || !out || nch <= 0 || !(fs >= 1.0) || fs > 2147483647.0)
+        return WDRT_INVALID_ARGS;
+    *out = NULL;
     SF_INFO info = {0};
     info.samplerate = (int)lround(fs);
     info.channels = nch;
     info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
     if (!sf_format_check(&info))
         return WDRT_INVALID_ARGS;
-
-    SNDFILE *f = sf_open(path, SFM_WRITE, &info);
-    if (!f) {
+    wdrt_wav_out *w = calloc(1, sizeof *w);
+    size_t n = strlen(path) + 1;
+    if (!w || !(w->path = malloc(n))) {
+        free(w);
+        return WDRT_OUT_OF_MEMORY;
+    }
+    memcpy(w->path, path, n);
+    w->nch = nch;
+    if (!(w->f = sf_open(path, SFM_WRITE, &info))) {
         fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(NULL));
+        free(w->path);
+        free(w);
         return WDRT_IO;
     }
     /* Samples are written as they are: no clipping or normalisation. */
-    sf_command(f, SFC_SET_CLIPPING, NULL, SF_FALSE);
-    sf_command(f, SFC_SET_NORM_DOUBLE, NULL, SF_FALSE);
+    sf_command(w->f, SFC_SET_CLIPPING, NULL, SF_FALSE);
+    sf_command(w->f, SFC_SET_NORM_DOUBLE, NULL, SF_FALSE);
     /* No PEAK chunk: it carries the time of writing, and the same render
      * should give the same file, byte for byte. */
-    sf_command(f, SFC_SET_ADD_PEAK_CHUNK, NULL, SF_FALSE);
+    sf_command(w->f, SFC_SET_ADD_PEAK_CHUNK, NULL, SF_FALSE);
+    *out = w;
+    return WDRT_OK;
+}
 
-    wdrt_result res = WDRT_OK;
-    long done = 0;
-    while (done < nframes) {
-        long n = nframes - done;
-        if (n > WDRT_IO_CHUNK)
-            n = WDRT_IO_CHUNK;
-        sf_count_t w = sf_writef_double(f, frames + (size_t)done * nch, n);
-        if (w != n) {
-            fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(f));
-            res = WDRT_IO;
-            break;
+wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes)
+{
+    if (!w || nframes < 0 || (nframes > 0 && !frames))
+        return WDRT_INVALID_ARGS;
+    for (long done = 0; done < nframes;) {
+        long n = nframes - done < WDRT_IO_CHUNK ? nframes - done : WDRT_IO_CHUNK;
+        if (sf_writef_double(w->f, frames + (size_t)done * (size_t)w->nch, n) != n) {
+            fprintf(stderr, "wdrt: %s: %s\n", w->path, sf_strerror(w->f));
+            return WDRT_IO;
         }
         done += n;
     }
-    if (sf_close(f) != 0 && res == WDRT_OK)
+    return WDRT_OK;
+}
+
+wdrt_result wdrt_wav_close(wdrt_wav_out *w)
+{
+    if (!w)
+        return WDRT_INVALID_ARGS;
+    wdrt_result res = WDRT_OK;
+    if (sf_close(w->f) != 0) {
+        fprintf(stderr, "wdrt: %s: %s\n", w->path, sf_strerror(NULL));
         res = WDRT_IO;
+    }
+    free(w->path);
+    free(w);
     return res;
+}
+
+wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
+                           const double *frames, long nframes)
+{
+    if (nframes < 0 || (nframes > 0 && !frames))
+        return WDRT_INVALID_ARGS;
+    wdrt_wav_out *w;
+    wdrt_result res = wdrt_wav_open(path, nch, fs, &w);
+    if (res != WDRT_OK)
+        return res;
+    res = wdrt_wav_append(w, frames, nframes);
+    wdrt_result c = wdrt_wav_close(w);
+    return res != WDRT_OK ? res : c;
 }
 
 wdrt_result wdrt_wav_read(const char *path, int *nch, double *fs,

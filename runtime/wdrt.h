@@ -480,6 +480,11 @@ void wdrt_scene_free(wdrt_scene *s);
  * the netlist's path (relative paths resolved against the scene's
  * folder). */
 int wdrt_scene_nvoices(const wdrt_scene *s);
+/* The channels a render of the scene has, and its rate with o's override
+ * (o may be NULL). */
+int wdrt_scene_channels(const wdrt_scene *s);
+struct wdrt_render_opts;
+double wdrt_scene_rate(const wdrt_scene *s, const struct wdrt_render_opts *o);
 const char *wdrt_scene_voice_name(const wdrt_scene *s, int i);
 const char *wdrt_scene_voice_netlist(const wdrt_scene *s, int i);
 
@@ -507,11 +512,17 @@ typedef struct wdrt_render_opts {
      * number of seconds when the end is not known) */
     void (*progress)(double done, void *user);
     void *user;
+    /* when set, each run of frames is handed here as it is rendered
+     * (interleaved, nch channels) and not kept, so a long render takes no
+     * more memory than a short one: *frames is then NULL.  A non-zero
+     * return stops the render (WDRT_IO). */
+    int (*sink)(const double *frames, long nframes, int nch, void *user);
+    void *sink_user;
 } wdrt_render_opts;
 
 /* Renders a bound scene into *frames (interleaved, *nch channels, malloc'ed;
- * the caller frees), at *rate Hz.  Statistics of the engine in *stats when
- * not NULL. */
+ * the caller frees), or through o->sink, at *rate Hz; *nframes frames in
+ * all.  Statistics of the engine in *stats when not NULL. */
 wdrt_result wdrt_scene_render(const wdrt_scene *s, const wdrt_render_opts *o,
                               double **frames, long *nframes, int *nch,
                               double *rate, wdrt_engine_stats *stats);
@@ -554,6 +565,13 @@ void wdrt_voice_close(wdrt_voice_lib *lib);
  * fs (Hz). */
 wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
                            const double *frames, long nframes);
+
+/* The same written as it comes: open, append runs of interleaved frames,
+ * close (which completes the header; the file is whole only then). */
+typedef struct wdrt_wav_out wdrt_wav_out;
+wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out);
+wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes);
+wdrt_result wdrt_wav_close(wdrt_wav_out *w);
 
 /* Reads a WAV (any libsndfile format) as interleaved doubles; *frames is
  * malloc'ed and freed by the caller. */

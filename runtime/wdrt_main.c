@@ -377,6 +377,22 @@ static char *default_out(const char *scene) {
     return p;
 }
 
+/* Where a render's frames go: the file, and their peak for the summary. */
+typedef struct sink {
+    wdrt_wav_out *w;
+    double peak;
+    int failed;
+} sink;
+
+static int to_file(const double *frames, long n, int nch, void *user) {
+    sink *k = user;
+    for (long i = 0; i < n * nch; i++)
+        k->peak = fabs(frames[i]) > k->peak ? fabs(frames[i]) : k->peak;
+    if (wdrt_wav_append(k->w, frames, n) != WDRT_OK)
+        k->failed = 1;
+    return k->failed;
+}
+
 static int cmd_render(int argc, char **argv) {
     opts o = parse_render(argc, argv);
     char err[4096];
@@ -403,27 +419,37 @@ static int cmd_render(int argc, char **argv) {
     progress pr = {o.scene, isatty(STDERR_FILENO) && !o.quiet, 0};
     o.ro.progress = show_progress;
     o.ro.user = &pr;
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
-    if (!status && wdrt_scene_render(s, &o.ro, &frames, &n, &nch, &rate, &st) != WDRT_OK) {
-        fprintf(stderr, "wdrt: error: %s: the scene could not be rendered\n", o.scene);
-        status = EXIT_TOOL;
-    }
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    if (pr.tty)
-        fprintf(stderr, "\r\033[K");
+    /* the frames go to the file as they are rendered: a long scene takes
+     * no more memory than a short one */
     char *out = o.out ? NULL : default_out(o.scene);
     const char *path = o.out ? o.out : out;
     if (!status && !o.out)
         mkdir_p("out");
-    if (!status && wdrt_wav_write(path, nch, rate, frames, n) != WDRT_OK) {
+    sink snk = {0};
+    if (!status && wdrt_wav_open(path, wdrt_scene_channels(s), wdrt_scene_rate(s, &o.ro), &snk.w) != WDRT_OK) {
         fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
         status = EXIT_USAGE;
     }
+    o.ro.sink = to_file;
+    o.ro.sink_user = &snk;
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    wdrt_result rr = status ? WDRT_OK : wdrt_scene_render(s, &o.ro, &frames, &n, &nch, &rate, &st);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    if (pr.tty)
+        fprintf(stderr, "\r\033[K");
+    if (snk.w && wdrt_wav_close(snk.w) != WDRT_OK && rr == WDRT_OK)
+        snk.failed = 1;
+    if (!status && (rr != WDRT_OK || snk.failed)) {
+        if (snk.failed)
+            fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+        else
+            fprintf(stderr, "wdrt: error: %s: the scene could not be rendered (%s)\n", o.scene, wdrt_result_str(rr));
+        remove(path); /* no half-written file left behind */
+        status = snk.failed ? EXIT_USAGE : EXIT_TOOL;
+    }
     if (!status && !o.quiet) {
-        double pk = 0, wall = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
-        for (long i = 0; i < n * nch; i++)
-            pk = fabs(frames[i]) > pk ? fabs(frames[i]) : pk;
+        double pk = snk.peak, wall = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
         char pb[40];
         fprintf(stderr,
                 "wdrt: wrote %s: %.2f s, %d channel%s at %.0f Hz, %s; %llu events (%llu late), "
