@@ -255,6 +255,10 @@ TT_HIDDEN void tt_class_bind(void *state, const void *tt_class_ptr);
  * params (NULL: defaults).  Allocates a state; returns 0 or -1 with err. */
 TT_HIDDEN int tt_render(const tt_prog *p, double fs, const double *params, double *out, long n, char *err,
                         size_t errlen);
+/* The same handed to sink in runs of at most 4096 frames as they are
+ * rendered, none kept; a non-zero return from sink stops it (-1). */
+TT_HIDDEN int tt_render_to(const tt_prog *p, double fs, const double *params, long n,
+                           int (*sink)(const double *y, long n, void *user), void *user, char *err, size_t errlen);
 
 /* The i-th of rvector's n values spread over [0, 1): stratified (one in
  * each of n equal cells), pseudo-random within its cell, the same for the

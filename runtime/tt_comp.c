@@ -822,12 +822,15 @@ void tt_class_uninit(tt_class *c) {
     c->stoff = NULL;
 }
 
-int tt_render(const tt_prog *P, double fs, const double *params, double *out, long n, char *err, size_t errlen) {
+int tt_render_to(const tt_prog *P, double fs, const double *params, long n,
+                 int (*sink)(const double *y, long n, void *user), void *user, char *err, size_t errlen) {
     tt_class c;
     if (tt_class_init(&c, P, fs, err, errlen))
         return -1;
     void *st = NULL;
-    if (posix_memalign(&st, 16, align16(c.cls.state_size))) {
+    double *buf = malloc(sizeof *buf * 4096);
+    if (!buf || posix_memalign(&st, 16, align16(c.cls.state_size))) {
+        free(buf);
         tt_class_uninit(&c);
         snprintf(err, errlen, "tree: error: out of memory\n");
         return -1;
@@ -836,11 +839,29 @@ int tt_render(const tt_prog *P, double fs, const double *params, double *out, lo
     tt_class_bind(st, &c);
     for (int i = 0; params && i < c.cls.n_params; i++)
         c.cls.set_param(st, i, params[i]);
-    for (long i = 0; i < n; i += 4096) {
-        double *o[1] = {out + i};
-        c.cls.process(st, NULL, o, (int)(n - i < 4096 ? n - i : 4096));
+    int r = 0;
+    for (long i = 0; i < n && !r; i += 4096) {
+        long k = n - i < 4096 ? n - i : 4096;
+        double *o[1] = {buf};
+        c.cls.process(st, NULL, o, (int)k);
+        if ((r = sink(buf, k, user)))
+            snprintf(err, errlen, "tree: error: the rendered frames could not be kept\n");
     }
+    free(buf);
     free(st);
     tt_class_uninit(&c);
+    return r ? -1 : 0;
+}
+
+/* tt_render's sink: the frames into the caller's array, in order. */
+static int into_array(const double *y, long n, void *user) {
+    double **at = user;
+    memcpy(*at, y, sizeof *y * (size_t)n);
+    *at += n;
     return 0;
+}
+
+int tt_render(const tt_prog *P, double fs, const double *params, double *out, long n, char *err, size_t errlen) {
+    double *at = out;
+    return tt_render_to(P, fs, params, n, into_array, &at, err, errlen);
 }

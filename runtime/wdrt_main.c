@@ -393,6 +393,8 @@ static int to_file(const double *frames, long n, int nch, void *user) {
     return k->failed;
 }
 
+static int to_file_mono(const double *frames, long n, void *user) { return to_file(frames, n, 1, user); }
+
 static int cmd_render(int argc, char **argv) {
     opts o = parse_render(argc, argv);
     char err[4096];
@@ -723,10 +725,34 @@ static int cmd_tree(int argc, char **argv) {
     if (seconds <= 0)
         seconds = isfinite(end) ? 60 : 4;
     long n = (long)llround(seconds * rate);
-    double *y = status ? NULL : malloc(sizeof *y * (size_t)(n > 0 ? n : 1));
-    if (!status && (!y || tt_render(P, rate, params, y, n, err, sizeof err))) {
-        fputs(y ? err : "wdrt: error: out of memory\n", stderr);
-        status = EXIT_TOOL;
+    char *def = out ? NULL : tree_out(file, expr);
+    const char *path = out ? out : def;
+    if (!status && !out)
+        mkdir_p("out");
+    double *y = NULL;
+    sink snk = {0};
+    if (!status && !trim) { /* a length given: written as it is rendered, in no more memory for an hour */
+        if (wdrt_wav_open(path, 1, rate, &snk.w) != WDRT_OK) {
+            fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+            status = EXIT_USAGE;
+        }
+        int r = status ? 0 : tt_render_to(P, rate, params, n, to_file_mono, &snk, err, sizeof err);
+        if (snk.w && wdrt_wav_close(snk.w) != WDRT_OK)
+            snk.failed = 1;
+        if (!status && (r || snk.failed)) {
+            if (snk.failed)
+                fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+            else
+                fputs(err, stderr);
+            remove(path);
+            status = snk.failed ? EXIT_USAGE : EXIT_TOOL;
+        }
+    } else if (!status) { /* to 60 s at most, then cut */
+        y = malloc(sizeof *y * (size_t)(n > 0 ? n : 1));
+        if (!y || tt_render(P, rate, params, y, n, err, sizeof err)) {
+            fputs(y ? err : "wdrt: error: out of memory\n", stderr);
+            status = EXIT_TOOL;
+        }
     }
     if (!status && trim) { /* after its end, until 100 dB below its peak, and 0.1 s more */
         double pk = 0;
@@ -739,17 +765,13 @@ static int cmd_tree(int argc, char **argv) {
         last = (last > from ? last : from) + (long)llround(0.1 * rate);
         n = last < n ? last : n;
     }
-    char *def = out ? NULL : tree_out(file, expr);
-    const char *path = out ? out : def;
-    if (!status && !out)
-        mkdir_p("out");
-    if (!status && wdrt_wav_write(path, 1, rate, y, n) != WDRT_OK) {
+    if (!status && trim && wdrt_wav_write(path, 1, rate, y, n) != WDRT_OK) {
         fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
         status = EXIT_USAGE;
     }
     if (!status && !quiet) {
-        double pk = 0;
-        for (long i = 0; i < n; i++)
+        double pk = snk.peak;
+        for (long i = 0; trim && i < n; i++)
             pk = fmax(pk, fabs(y[i]));
         char pb[40];
         fprintf(stderr, "wdrt: wrote %s: %.2f s at %.0f Hz, %s\n", path, n / rate, rate,

@@ -101,6 +101,23 @@ static double *render_p(const char *text, double fs, long n, const double *param
 
 static double *render(const char *text, double fs, long n) { return render_p(text, fs, n, NULL); }
 
+/* A render's sink that keeps its frames, up to cap, in runs of at most 4096. */
+typedef struct sunk {
+    double *y;
+    long n, cap;
+    int runs;
+} sunk;
+
+static int sink_runs(const double *y, long n, void *user) {
+    sunk *k = user;
+    if (n > 4096 || k->n + n > k->cap)
+        return 1;
+    memcpy(k->y + k->n, y, sizeof *y * (size_t)n);
+    k->n += n;
+    k->runs++;
+    return 0;
+}
+
 /* The value of a constant tree (its first sample). */
 static double value_of(const char *text) {
     double *y = render(text, FS, 1), v = y[0];
@@ -653,6 +670,19 @@ static void test_env(void **s) {
     tt_prog_free(p);
     p = compile_text("(sine (* 440 t))");
     assert_true(tt_prog_end(p) == HUGE_VAL);
+    /* rendered through a sink: the same frames, in runs of at most 4096,
+     * none kept; a sink that fails stops the render */
+    double *whole = malloc(sizeof *whole * 10000), *runs = malloc(sizeof *runs * 10000);
+    assert_int_equal(tt_render(p, FS, NULL, whole, 10000, err, sizeof err), 0);
+    sunk k = {runs, 0, 10000, 0};
+    assert_int_equal(tt_render_to(p, FS, NULL, 10000, sink_runs, &k, err, sizeof err), 0);
+    assert_int_equal(k.n, 10000);
+    assert_int_equal(k.runs, 3);
+    assert_memory_equal(whole, runs, sizeof *runs * 10000);
+    k.n = 0, k.cap = 5000;
+    assert_int_equal(tt_render_to(p, FS, NULL, 10000, sink_runs, &k, err, sizeof err), -1);
+    free(whole);
+    free(runs);
     tt_prog_free(p);
 }
 
