@@ -1751,6 +1751,7 @@ void wdrt_scene_free(wdrt_scene *S) {
  * voice nodes of its trees (S->nl). */
 int wdrt_scene_nvoices(const wdrt_scene *s) { return s ? s->nnl : 0; }
 int wdrt_scene_channels(const wdrt_scene *s) { return s ? s->channels : 0; }
+double wdrt_scene_length(const wdrt_scene *s) { return s ? s->length : 0; }
 double wdrt_scene_rate(const wdrt_scene *s, const wdrt_render_opts *o) {
     return o && o->rate > 0 ? o->rate : s ? s->rate : 0;
 }

@@ -21,6 +21,7 @@ struct wdrt_wav_out {
     SNDFILE *f;
     char *path;
     int nch;
+    unsigned long long bytes; /* of samples written */
 };
 
 wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out)
@@ -62,6 +63,12 @@ wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes)
 {
     if (!w || nframes < 0 || (nframes > 0 && !frames))
         return WDRT_INVALID_ARGS;
+    unsigned long long more = (unsigned long long)nframes * (unsigned long long)w->nch * 4;
+    if (w->bytes + more > WDRT_WAV_MAX_BYTES) { /* past it, the header's sizes would wrap */
+        fprintf(stderr, "wdrt: %s: a WAV file holds at most 4 GiB of samples\n", w->path);
+        return WDRT_IO;
+    }
+    w->bytes += more;
     for (long done = 0; done < nframes;) {
         long n = nframes - done < WDRT_IO_CHUNK ? nframes - done : WDRT_IO_CHUNK;
         if (sf_writef_double(w->f, frames + (size_t)done * (size_t)w->nch, n) != n) {

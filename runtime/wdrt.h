@@ -483,6 +483,8 @@ int wdrt_scene_nvoices(const wdrt_scene *s);
 /* The channels a render of the scene has, and its rate with o's override
  * (o may be NULL). */
 int wdrt_scene_channels(const wdrt_scene *s);
+/* Its (length) in seconds, or 0: until its last event has rung down. */
+double wdrt_scene_length(const wdrt_scene *s);
 struct wdrt_render_opts;
 double wdrt_scene_rate(const wdrt_scene *s, const struct wdrt_render_opts *o);
 const char *wdrt_scene_voice_name(const wdrt_scene *s, int i);
@@ -567,7 +569,10 @@ wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
                            const double *frames, long nframes);
 
 /* The same written as it comes: open, append runs of interleaved frames,
- * close (which completes the header; the file is whole only then). */
+ * close (which completes the header; the file is whole only then).  A
+ * WAV's sizes are 32-bit: its samples (4 bytes each) may take at most
+ * WDRT_WAV_MAX_BYTES, and an append past it fails. */
+#define WDRT_WAV_MAX_BYTES (0xFFFFFFFFull - 4096)
 typedef struct wdrt_wav_out wdrt_wav_out;
 wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out);
 wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes);

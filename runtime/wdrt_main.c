@@ -342,6 +342,8 @@ static opts parse_render(int argc, char **argv) {
             o.out = argv[++i];
         } else if (!strcmp(a, "--seconds")) {
             o.ro.seconds = take_number(argc, argv, &i);
+            if (o.ro.seconds > 86400)
+                usage_error("--seconds: at most a day");
         } else if (!strcmp(a, "--rate")) {
             o.ro.rate = take_number(argc, argv, &i);
             if (o.ro.rate < 1000 || o.ro.rate > 768000)
@@ -393,6 +395,17 @@ static int to_file(const double *frames, long n, int nch, void *user) {
     return k->failed;
 }
 
+/* True if secs of nch channels at rate fit in a WAV file; else says so,
+ * naming what set the length. */
+static int wav_fits(double secs, int nch, double rate, const char *what) {
+    double most = (double)WDRT_WAV_MAX_BYTES / (4.0 * nch * rate);
+    if (secs * rate * nch * 4.0 <= (double)WDRT_WAV_MAX_BYTES)
+        return 1;
+    fprintf(stderr, "wdrt: error: %s: %g s is too long for a WAV file, which holds at most 4 GiB: %.0f s of %d "
+                    "channel%s at %g Hz\n", what, secs, floor(most), nch, nch > 1 ? "s" : "", rate);
+    return 0;
+}
+
 static int to_file_mono(const double *frames, long n, void *user) { return to_file(frames, n, 1, user); }
 
 static int cmd_render(int argc, char **argv) {
@@ -428,6 +441,10 @@ static int cmd_render(int argc, char **argv) {
     if (!status && !o.out)
         mkdir_p("out");
     sink snk = {0};
+    double secs = o.ro.seconds > 0 ? o.ro.seconds : wdrt_scene_length(s);
+    if (!status && !wav_fits(secs, wdrt_scene_channels(s), wdrt_scene_rate(s, &o.ro), o.ro.seconds > 0 ? "--seconds"
+                                                                                                           : o.scene))
+        status = EXIT_USAGE;
     if (!status && wdrt_wav_open(path, wdrt_scene_channels(s), wdrt_scene_rate(s, &o.ro), &snk.w) != WDRT_OK) {
         fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
         status = EXIT_USAGE;
@@ -732,7 +749,9 @@ static int cmd_tree(int argc, char **argv) {
     double *y = NULL;
     sink snk = {0};
     if (!status && !trim) { /* a length given: written as it is rendered, in no more memory for an hour */
-        if (wdrt_wav_open(path, 1, rate, &snk.w) != WDRT_OK) {
+        if (!wav_fits(seconds, 1, rate, "--seconds")) {
+            status = EXIT_USAGE;
+        } else if (wdrt_wav_open(path, 1, rate, &snk.w) != WDRT_OK) {
             fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
             status = EXIT_USAGE;
         }

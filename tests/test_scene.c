@@ -211,6 +211,16 @@ static void test_cli_cache(void **s) {
     assert_int_equal(tl_system("timeout 60 bin/wdrt render /dev/zero 2>/dev/null"), 1);
     assert_int_equal(tl_system("timeout 60 bin/wdrt tree /dev/zero 2>/dev/null"), 1);
     assert_int_equal(tl_system("timeout 60 bin/wdrt complex /dev/zero 2>/dev/null"), 1);
+    /* lengths past a day, or past what a WAV file holds, are refused before rendering */
+    write_file("len.wds", "(body b (modes (440 1 1)) (mass 1) (pos 0 0 0))\n");
+    snprintf(cmd, sizeof cmd, "bin/wdrt render %s/len.wds -o %s/x.wav --seconds 1e30 2>/dev/null", g_dir, g_dir);
+    assert_int_equal(tl_system(cmd), 2);
+    snprintf(cmd, sizeof cmd, "bin/wdrt render %s/len.wds -o %s/x.wav --seconds 30000 2>&1 | grep -q "
+             "'too long for a WAV file, which holds at most 4 GiB: 22369 s of 1 channel at 48000 Hz'", g_dir, g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "test ! -e %s/x.wav", g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    assert_int_equal(tl_system("bin/wdrt tree '(sin 1)' -o /dev/null --seconds 50000 2>/dev/null"), 2);
     write_file("dev.wds", "(body b (modes \"/dev/zero\") (mass 1) (pos 0 0 0))\n");
     snprintf(cmd, sizeof cmd, "timeout 60 bin/wdrt render %s/dev.wds -o %s/x.wav 2>&1 | grep -q "
              "\"cannot read the modes '/dev/zero': not a regular file\"", g_dir, g_dir);
