@@ -67,14 +67,20 @@ static void test_seconds_limit(void **s) {
     assert_err_has("--seconds");
 }
 
-/* A day at 48 kHz does not fit under a 1 GB address-space limit: the
- * failed allocation is reported with status 3, not a crash. */
+/* Two hours of three outputs at 48 kHz do not fit under a 1 GB
+ * address-space limit: the failed allocation is reported with status 3,
+ * not a crash.  A day of them does not fit in a WAV file (4 GiB): refused
+ * before anything is allocated. */
 static void test_allocation_failure(void **s) {
     (void)s;
-    int st = tl_system(format("ulimit -v 1000000; bin/wdc netlists/msd.wdn --render %s/x.wav --seconds 86400 "
+    int st = tl_system(format("ulimit -v 1000000; bin/wdc netlists/msd.wdn --render %s/x.wav --seconds 7000 "
                               "--input impulse 2>%s/err.txt", dir, dir));
     assert_int_equal(st, 3);
     assert_err_has("out of memory");
+    st = tl_system(format("bin/wdc netlists/msd.wdn --render %s/x.wav --seconds 86400 --input impulse 2>%s/err.txt",
+                          dir, dir));
+    assert_int_equal(st, 2);
+    assert_err_has("86400 s of 3 outputs at 48000 Hz is too long for a WAV file, which holds at most 4 GiB (7456 s)");
 }
 
 /* Event times past the render, or past a day without --seconds, are
