@@ -547,7 +547,9 @@ static int start_vertex(const cx_complex *K, const char *file, const char *text)
 }
 
 /* Renders the score through an engine, as a scene would host it. */
-static double *render_score(const cx_score *sc, double fs, long *n) {
+/* Renders the score through the sink in runs of 4096 frames; *n frames
+ * in all.  0, or -1 (out of memory, or the sink refused a run). */
+static int render_score(const cx_score *sc, double fs, long *n, sink *k) {
     cx_source src;
     cx_source_init(&src, sc, 0);
     wdrt_pool_config pc = wdrt_pool_config_init(&src.cls, 1);
@@ -555,15 +557,20 @@ static double *render_score(const cx_score *sc, double fs, long *n) {
     wdrt_engine_config ec = wdrt_engine_config_init(fs, 1, 1, &pc);
     wdrt_engine *e;
     *n = (long)llround(sc->length * fs) + 1;
-    double *y = malloc(sizeof *y * (size_t)*n);
+    double *y = malloc(sizeof *y * 4096);
     if (!y || wdrt_engine_init(&ec, NULL, &e) != WDRT_OK) {
         free(y);
-        return NULL;
+        return -1;
     }
-    for (long t = 0; t < *n; t += 4096)
-        wdrt_engine_process(e, y + t, (uint32_t)(*n - t < 4096 ? *n - t : 4096));
+    int r = 0;
+    for (long t = 0; t < *n && !r; t += 4096) {
+        long m = *n - t < 4096 ? *n - t : 4096;
+        wdrt_engine_process(e, y, (uint32_t)m);
+        r = to_file_mono(y, m, k);
+    }
     wdrt_engine_uninit(e, NULL);
-    return y;
+    free(y);
+    return r ? -1 : 0;
 }
 
 /* out/NAME.wav for FILE = .../NAME.EXT */
@@ -578,27 +585,41 @@ static char *complex_out(const char *file) {
     return p;
 }
 
+/* The score written as it is rendered: however slow the tempo, no more
+ * memory than a second of it. */
 static int write_complex(const cxopts *o, const cx_score *sc) {
     char *def = o->out ? NULL : complex_out(o->file);
     const char *path = o->out ? o->out : def;
-    long n;
-    double *y = render_score(sc, o->rate, &n);
+    long n = 0;
     int status = 0;
-    if (!y) {
-        fprintf(stderr, "wdrt: error: out of memory\n");
-        status = EXIT_TOOL;
-    } else if ((o->out || !mkdir_p("out")) && wdrt_wav_write(path, 1, o->rate, y, n) != WDRT_OK) {
+    sink snk = {0};
+    if (sc->length > 86400) {
+        fprintf(stderr, "wdrt: error: %s: the score lasts %.6g s, more than a day (raise --tempo)\n", o->file,
+                sc->length);
+        status = EXIT_USAGE;
+    } else if (!wav_fits(sc->length, 1, o->rate, o->file)) {
+        status = EXIT_USAGE;
+    } else if (!(o->out || !mkdir_p("out")) || wdrt_wav_open(path, 1, o->rate, &snk.w) != WDRT_OK) {
         fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
         status = EXIT_USAGE;
-    } else if (!o->quiet) {
-        double pk = 0;
-        for (long i = 0; i < n; i++)
-            pk = fmax(pk, fabs(y[i]));
+    } else {
+        int r = render_score(sc, o->rate, &n, &snk);
+        if (wdrt_wav_close(snk.w) != WDRT_OK)
+            snk.failed = 1;
+        if (r || snk.failed) {
+            if (snk.failed)
+                fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+            else
+                fprintf(stderr, "wdrt: error: out of memory\n");
+            remove(path);
+            status = snk.failed ? EXIT_USAGE : EXIT_TOOL;
+        }
+    }
+    if (!status && !o->quiet) {
         char pb[40];
         fprintf(stderr, "wdrt: wrote %s: %.2f s, %d notes (at most %d at once), %s\n", path, n / o->rate,
-                sc->nnotes, sc->maxactive, peak_text(pk, pb, sizeof pb));
+                sc->nnotes, sc->maxactive, peak_text(snk.peak, pb, sizeof pb));
     }
-    free(y);
     free(def);
     return status;
 }

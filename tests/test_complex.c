@@ -994,6 +994,16 @@ static void test_cli(void **s) {
     assert_int_equal(tl_system(cmd), 1);
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo -1 2>/dev/null", t);
     assert_int_equal(tl_system(cmd), 2);
+    /* a tempo so slow the score passes a day, or what a WAV file holds, is
+     * refused before anything is rendered (0.48 s of two 1-waves at tempo 1) */
+    snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo 1e-6 -o %s/slow.wav 2>&1 | grep -q 'more than a day'", t,
+             g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo 1e-5 -o %s/slow.wav 2>&1 | grep -q 'too long for a WAV file'",
+             t, g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "test ! -e %s/slow.wav", g_dir);
+    assert_int_equal(tl_system(cmd), 0);
     assert_int_equal(tl_system("bin/wdrt complex /nonexistent.txt 2>/dev/null"), 1);
 }
 
