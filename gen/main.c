@@ -474,10 +474,10 @@ static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *r
         n = rd->ev[rd->nev - 1].frame + lround(3 * fs);
     if (n < 0)
         n = lround(fs);
-    if ((double)n * c->nouts * 4.0 > (double)WDRT_WAV_MAX_BYTES) { /* a WAV's sizes are 32-bit */
+    if (!wdrt_wav_fits((double)n, c->nouts)) { /* a WAV's sizes are 32-bit */
         fprintf(stderr, "wdc: error: %.6g s of %d output%s at %g Hz is too long for a WAV file, which holds at most "
                         "4 GiB (%.0f s)\n", n / fs, c->nouts, c->nouts > 1 ? "s" : "", fs,
-                floor((double)WDRT_WAV_MAX_BYTES / (4.0 * c->nouts * fs)));
+                wdrt_wav_max_seconds(c->nouts, fs));
         exit(EXIT_USAGE);
     }
     /* a deck's sources that no --input drives: their time functions */

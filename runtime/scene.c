@@ -2536,6 +2536,28 @@ static void space_config(const wdrt_scene *S, wdrt_space_config *sp) {
     sp->nrooms = S->nrooms;
 }
 
+/* The sink wdrt_scene_render keeps the frames with when the caller gives
+ * none: an array that grows by doubling, up to the render's length. */
+typedef struct kept {
+    double *y;
+    uint64_t n, alloc, cap; /* frames kept, room, the render's length */
+} kept;
+
+static int keep_frames(const double *frames, long n, int nch, void *user) {
+    kept *k = user;
+    if (k->n + (uint64_t)n > k->alloc) {
+        uint64_t a = 2 * (k->n + (uint64_t)n);
+        a = a < k->cap ? a : k->cap;
+        double *p = realloc(k->y, sizeof(double) * (size_t)a * (size_t)nch);
+        if (!p)
+            return 1;
+        k->y = p, k->alloc = a;
+    }
+    memcpy(k->y + k->n * (uint64_t)nch, frames, sizeof(double) * (size_t)n * (size_t)nch);
+    k->n += (uint64_t)n;
+    return 0;
+}
+
 wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, double **frames, long *nframes,
                               int *nch, double *rate, wdrt_engine_stats *stats) {
     if (!S || !frames || !nframes || !nch)
@@ -2602,30 +2624,23 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
             break;
         }
     uint64_t n = secs > 0 ? frame_of(secs, R.fs) : 0, last = last_frame(&R);
-    uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0, alloc = 0;
+    uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0;
     const uint64_t chunk = 4096;
-    const int sink = o && o->sink;
-    if (sink && !(out = malloc(sizeof(double) * (size_t)chunk * (size_t)S->channels))) {
+    /* every run goes to a sink: the caller's, or one that keeps the frames */
+    kept keep = {NULL, 0, 0, cap};
+    int (*sink)(const double *, long, int, void *) = o && o->sink ? o->sink : keep_frames;
+    void *user = o && o->sink ? o->sink_user : &keep;
+    if (!(out = malloc(sizeof(double) * (size_t)chunk * (size_t)S->channels))) {
         res = WDRT_OUT_OF_MEMORY;
         goto done;
     }
     wdrt_engine_stats st;
     while (t < cap) {
         uint64_t want = t + chunk < cap ? t + chunk : cap;
-        uint64_t end = post_due(&R, t, sw_post(bodies, &tl, t, want));
-        if (!sink && end > alloc) {
-            alloc = end * 2 < cap ? end * 2 : cap;
-            double *p = realloc(out, sizeof(double) * (size_t)alloc * (size_t)S->channels);
-            if (!p) {
-                res = WDRT_OUT_OF_MEMORY;
-                goto done;
-            }
-            out = p;
-        }
-        double *at = sink ? out : out + t * (uint64_t)S->channels; /* a run is at most a chunk */
-        wdrt_engine_process(R.e, at, (uint32_t)(end - t));
-        if (sink && o->sink(at, (long)(end - t), S->channels, o->sink_user)) {
-            res = WDRT_IO;
+        uint64_t end = post_due(&R, t, sw_post(bodies, &tl, t, want)); /* a run is at most a chunk */
+        wdrt_engine_process(R.e, out, (uint32_t)(end - t));
+        if (sink(out, (long)(end - t), S->channels, user)) {
+            res = sink == keep_frames ? WDRT_OUT_OF_MEMORY : WDRT_IO;
             goto done;
         }
         t = end;
@@ -2639,15 +2654,15 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     wdrt_engine_get_stats(R.e, &st);
     if (stats)
         *stats = st;
-    *frames = sink ? NULL : out;
+    *frames = keep.y; /* NULL through the caller's sink */
+    keep.y = NULL;
     *nframes = (long)t;
     *nch = S->channels;
     if (rate)
         *rate = R.fs;
-    if (!sink)
-        out = NULL;
     res = WDRT_OK;
 done:
+    free(keep.y);
     free(out);
     if (R.e)
         wdrt_engine_uninit(R.e, NULL);

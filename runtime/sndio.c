@@ -24,6 +24,16 @@ struct wdrt_wav_out {
     unsigned long long bytes; /* of samples written */
 };
 
+int wdrt_wav_fits(double nframes, int nch)
+{
+    return nframes * nch * 4.0 <= (double)WDRT_WAV_MAX_BYTES;
+}
+
+double wdrt_wav_max_seconds(int nch, double fs)
+{
+    return floor((double)WDRT_WAV_MAX_BYTES / (4.0 * nch * fs));
+}
+
 wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out)
 {
     if (!path || !out || nch <= 0 || !(fs >= 1.0) || fs > 2147483647.0)

@@ -573,6 +573,10 @@ wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
  * WAV's sizes are 32-bit: its samples (4 bytes each) may take at most
  * WDRT_WAV_MAX_BYTES, and an append past it fails. */
 #define WDRT_WAV_MAX_BYTES (0xFFFFFFFFull - 4096)
+/* True if nframes of nch channels fit in a WAV file; the longest one of
+ * nch channels at fs holds, in whole seconds. */
+int wdrt_wav_fits(double nframes, int nch);
+double wdrt_wav_max_seconds(int nch, double fs);
 typedef struct wdrt_wav_out wdrt_wav_out;
 wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out);
 wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes);

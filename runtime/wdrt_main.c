@@ -395,15 +395,37 @@ static int to_file(const double *frames, long n, int nch, void *user) {
     return k->failed;
 }
 
-/* True if secs of nch channels at rate fit in a WAV file; else says so,
- * naming what set the length. */
-static int wav_fits(double secs, int nch, double rate, const char *what) {
-    double most = (double)WDRT_WAV_MAX_BYTES / (4.0 * nch * rate);
-    if (secs * rate * nch * 4.0 <= (double)WDRT_WAV_MAX_BYTES)
-        return 1;
-    fprintf(stderr, "wdrt: error: %s: %g s is too long for a WAV file, which holds at most 4 GiB: %.0f s of %d "
-                    "channel%s at %g Hz\n", what, secs, floor(most), nch, nch > 1 ? "s" : "", rate);
+/* Opens k's file for secs of nch channels at rate, if a WAV file holds
+ * them (`what` set the length); 0, or the exit status, said. */
+static int sink_open(sink *k, const char *path, double secs, int nch, double rate, const char *what) {
+    if (!wdrt_wav_fits(secs * rate, nch)) {
+        fprintf(stderr, "wdrt: error: %s: %g s is too long for a WAV file, which holds at most 4 GiB: %.0f s of %d "
+                        "channel%s at %g Hz\n", what, secs, wdrt_wav_max_seconds(nch, rate), nch, nch > 1 ? "s" : "",
+                rate);
+        return EXIT_USAGE;
+    }
+    if (wdrt_wav_open(path, nch, rate, &k->w) != WDRT_OK) {
+        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+        return EXIT_USAGE;
+    }
     return 0;
+}
+
+/* Closes k's file.  If the render failed (`why` says how, unless writing
+ * failed first) or the writing did, no half-written file is left behind.
+ * 0, or the exit status. */
+static int sink_close(sink *k, const char *path, int rendered, const char *why) {
+    if (k->w && wdrt_wav_close(k->w) != WDRT_OK)
+        k->failed = 1;
+    k->w = NULL;
+    if (rendered && !k->failed)
+        return 0;
+    if (k->failed)
+        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+    else
+        fputs(why, stderr);
+    remove(path);
+    return k->failed ? EXIT_USAGE : EXIT_TOOL;
 }
 
 static int to_file_mono(const double *frames, long n, void *user) { return to_file(frames, n, 1, user); }
@@ -442,13 +464,9 @@ static int cmd_render(int argc, char **argv) {
         mkdir_p("out");
     sink snk = {0};
     double secs = o.ro.seconds > 0 ? o.ro.seconds : wdrt_scene_length(s);
-    if (!status && !wav_fits(secs, wdrt_scene_channels(s), wdrt_scene_rate(s, &o.ro), o.ro.seconds > 0 ? "--seconds"
-                                                                                                           : o.scene))
-        status = EXIT_USAGE;
-    if (!status && wdrt_wav_open(path, wdrt_scene_channels(s), wdrt_scene_rate(s, &o.ro), &snk.w) != WDRT_OK) {
-        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
-        status = EXIT_USAGE;
-    }
+    if (!status)
+        status = sink_open(&snk, path, secs, wdrt_scene_channels(s), wdrt_scene_rate(s, &o.ro),
+                           o.ro.seconds > 0 ? "--seconds" : o.scene);
     o.ro.sink = to_file;
     o.ro.sink_user = &snk;
     struct timespec t0, t1;
@@ -457,15 +475,11 @@ static int cmd_render(int argc, char **argv) {
     clock_gettime(CLOCK_MONOTONIC, &t1);
     if (pr.tty)
         fprintf(stderr, "\r\033[K");
-    if (snk.w && wdrt_wav_close(snk.w) != WDRT_OK && rr == WDRT_OK)
-        snk.failed = 1;
-    if (!status && (rr != WDRT_OK || snk.failed)) {
-        if (snk.failed)
-            fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
-        else
-            fprintf(stderr, "wdrt: error: %s: the scene could not be rendered (%s)\n", o.scene, wdrt_result_str(rr));
-        remove(path); /* no half-written file left behind */
-        status = snk.failed ? EXIT_USAGE : EXIT_TOOL;
+    if (!status) {
+        char why[1024];
+        snprintf(why, sizeof why, "wdrt: error: %s: the scene could not be rendered (%s)\n", o.scene,
+                 wdrt_result_str(rr));
+        status = sink_close(&snk, path, rr == WDRT_OK, why);
     }
     if (!status && !o.quiet) {
         double pk = snk.peak, wall = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
@@ -597,23 +611,11 @@ static int write_complex(const cxopts *o, const cx_score *sc) {
         fprintf(stderr, "wdrt: error: %s: the score lasts %.6g s, more than a day (raise --tempo)\n", o->file,
                 sc->length);
         status = EXIT_USAGE;
-    } else if (!wav_fits(sc->length, 1, o->rate, o->file)) {
-        status = EXIT_USAGE;
-    } else if (!(o->out || !mkdir_p("out")) || wdrt_wav_open(path, 1, o->rate, &snk.w) != WDRT_OK) {
-        fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
-        status = EXIT_USAGE;
     } else {
-        int r = render_score(sc, o->rate, &n, &snk);
-        if (wdrt_wav_close(snk.w) != WDRT_OK)
-            snk.failed = 1;
-        if (r || snk.failed) {
-            if (snk.failed)
-                fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
-            else
-                fprintf(stderr, "wdrt: error: out of memory\n");
-            remove(path);
-            status = snk.failed ? EXIT_USAGE : EXIT_TOOL;
-        }
+        if (!o->out)
+            mkdir_p("out");
+        if (!(status = sink_open(&snk, path, sc->length, 1, o->rate, o->file)))
+            status = sink_close(&snk, path, !render_score(sc, o->rate, &n, &snk), "wdrt: error: out of memory\n");
     }
     if (!status && !o->quiet) {
         char pb[40];
@@ -770,23 +772,9 @@ static int cmd_tree(int argc, char **argv) {
     double *y = NULL;
     sink snk = {0};
     if (!status && !trim) { /* a length given: written as it is rendered, in no more memory for an hour */
-        if (!wav_fits(seconds, 1, rate, "--seconds")) {
-            status = EXIT_USAGE;
-        } else if (wdrt_wav_open(path, 1, rate, &snk.w) != WDRT_OK) {
-            fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
-            status = EXIT_USAGE;
-        }
-        int r = status ? 0 : tt_render_to(P, rate, params, n, to_file_mono, &snk, err, sizeof err);
-        if (snk.w && wdrt_wav_close(snk.w) != WDRT_OK)
-            snk.failed = 1;
-        if (!status && (r || snk.failed)) {
-            if (snk.failed)
-                fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
-            else
-                fputs(err, stderr);
-            remove(path);
-            status = snk.failed ? EXIT_USAGE : EXIT_TOOL;
-        }
+        if (!(status = sink_open(&snk, path, seconds, 1, rate, "--seconds")))
+            status = sink_close(&snk, path, !tt_render_to(P, rate, params, n, to_file_mono, &snk, err, sizeof err),
+                                err);
     } else if (!status) { /* to 60 s at most, then cut */
         y = malloc(sizeof *y * (size_t)(n > 0 ? n : 1));
         if (!y || tt_render(P, rate, params, y, n, err, sizeof err)) {
