@@ -808,9 +808,9 @@ static int cmd_tree(int argc, char **argv) {
     free(def);
     free(y);
     free(params);
-    tt_prog_free(P);
-    for (int k = 0; libs && P && k < tt_prog_nvoices(P); k++)
+    for (int k = 0; libs && P && k < tt_prog_nvoices(P); k++) /* before P, which counts them, is freed */
         wdrt_voice_close(&libs[k]);
+    tt_prog_free(P);
     free(libs);
     tt_file_free(F);
     return status;
