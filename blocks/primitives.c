@@ -3,17 +3,29 @@
  * the wave-digital structure and the voice see them: each one's law, how
  * it is realised (its port resistance from its value, the wave it
  * reflects), what it stores, and how it enters the initial-condition
- * solve.  The kinds of the netlist (the other files here) say which of
- * these they become.
+ * solve; its stamps are the C text the printer fills in for the wave it
+ * reflects, what it stores, its energy and a strike (gen/gen.h, Prim).
+ * The kinds of the netlist (the other files here) say which of these
+ * they become.
  */
 #include "gen.h"
 
 const Prim prims[] = {
-    [E_R] = {"resistor", "v = R i", WD_ADAPTED, 'v', 0, ROOT_NEVER, IC_RES, IC_RES},
-    [E_C] = {"capacitor", "i = C dv/dt", WD_HOLD, 'C', 'C', ROOT_NEVER, IC_CAP, IC_CAP},
-    [E_L] = {"inductor", "v = L di/dt", WD_HOLD_NEG, 'L', 'L', ROOT_NEVER, IC_IND, IC_IND},
-    [E_V] = {"voltage source", "v = e + R i; ideal without R", WD_SOURCE, 'v', 0, ROOT_IDEAL, IC_V, IC_RV},
-    [E_I] = {"current source", "i = j + v / R; ideal without R", WD_SOURCE, 'v', 0, ROOT_IDEAL, IC_I, IC_RI},
+    [E_R] = {"resistor", "v = R i", WD_ADAPTED, 'v', 0, ROOT_NEVER, IC_RES, IC_RES, .reflect = "0"},
+    /* trapezoidal: C = T / (2 R), so its energy C v^2 / 2 is v^2 / (4 fs R);
+     * a mass's velocity is its voltage, set by v(node) */
+    [E_C] = {"capacitor", "i = C dv/dt", WD_HOLD, 'C', 'C', ROOT_NEVER, IC_CAP, IC_CAP, .reflect = "$a",
+             .stored = "0.5 * D($a + $b)", .energy = "double v = $x; E += 0.25 / (st->fs * D($R)) * v * v;",
+             .strike = 'v', .struck = "$x"},
+    /* L = R / (2 fs): its energy L i^2 / 2 is R i^2 / (4 fs); a spring's
+     * force is its current and L i its stretch, set by x(node) */
+    [E_L] = {"inductor", "v = L di/dt", WD_HOLD_NEG, 'L', 'L', ROOT_NEVER, IC_IND, IC_IND, .reflect = "-$a",
+             .stored = "0.5 * D($a - $b) / D($R)", .energy = "double i = $x; E += 0.25 * D($R) / st->fs * i * i;",
+             .strike = 'x', .struck = "$x / (0.5 * D($R) / st->fs)"},
+    [E_V] = {"voltage source", "v = e + R i; ideal without R", WD_SOURCE, 'v', 0, ROOT_IDEAL, IC_V, IC_RV,
+             .reflect = "$e"},
+    [E_I] = {"current source", "i = j + v / R; ideal without R", WD_SOURCE, 'v', 0, ROOT_IDEAL, IC_I, IC_RI,
+             .reflect = "-$R * $e"},
     /* a contact or a nonlinear inductor holds a force (IC_FORCE, see
      * prim_ic); a diode or curve at rest carries no current */
     [E_NL] = {"nonlinear one-port", "i = g(v), or the law of a stored coordinate (NlSpec)", WD_ROOT, 'v', 0,

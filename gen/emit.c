@@ -344,6 +344,55 @@ static const char *lit(Ctx *x, double v) {
  * is widened unseen. */
 static const char *dbl(Ctx *x, const char *s) { return x->single ? format("(double)%s", s) : s; }
 
+/* The texts a primitive's stamp (blocks/primitives.c) is filled with:
+ * $a, $b, $e, $R and $x. */
+typedef struct StampArgs {
+    const char *a, *b, *e, *R, *x;
+} StampArgs;
+
+/* Fills *s up to an unmatched ')' or its end into o; D(...) becomes its
+ * contents in double (dbl; parenthesised if they hold a space, as a
+ * stamp's operators do). */
+static const char *stamp_fill(Ctx *x, const char *s, const StampArgs *g, Buf *o) {
+    while (*s && *s != ')') {
+        if (*s == '$') {
+            const char *v = s[1] == 'a' ? g->a : s[1] == 'b' ? g->b : s[1] == 'e' ? g->e : s[1] == 'R' ? g->R
+                          : s[1] == 'x' ? g->x : NULL;
+            if (!v)
+                die("a stamp names $%c, which its printer does not give", s[1]);
+            emit(o, "%s", v);
+            s += 2;
+        } else if (s[0] == 'D' && s[1] == '(') {
+            Buf in = {0};
+            s = stamp_fill(x, s + 2, g, &in);
+            if (*s++ != ')')
+                die("a stamp's D( is not closed");
+            const char *t = str(&in);
+            emit(o, "%s", dbl(x, strchr(t, ' ') ? format("(%s)", t) : t));
+        } else if (*s == '(') {
+            emit(o, "(");
+            s = stamp_fill(x, s + 1, g, o);
+            if (*s)
+                emit(o, "%c", *s++);
+        } else
+            emit(o, "%c", *s++);
+    }
+    return s;
+}
+
+/* A primitive's stamp as C text. */
+static const char *stamp(Ctx *x, const char *s, StampArgs g) {
+    Buf o = {0};
+    if (*stamp_fill(x, s, &g, &o))
+        die("a stamp has an unmatched ')'");
+    return str(&o);
+}
+
+/* Whether text is a name or a number, which a statement need not hold. */
+static bool plain(const char *t) {
+    return *t && !t[strspn(t, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.")];
+}
+
 static const Elem *nl_elem(Ctx *x, int k) {
     return &x->c->elems[x->w->roots[x->nl_root[k]].edge[x->nl_edge[k]].elem];
 }
@@ -691,21 +740,21 @@ static void emit_forward(Ctx *x) {
         const char *tb = format("t_b%d", i);
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
-            switch (prims[e->kind].wd) {
-            case WD_ADAPTED: x->b[i] = "0"; break;
-            case WD_HOLD: x->b[i] = format("s_a%d", x->react[i]); break;
-            case WD_HOLD_NEG:
-                put(x, tb, "        const real t_b%d = -s_a%d; /* %s */\n", i, x->react[i], e->name);
-                x->b[i] = tb;
-                break;
-            case WD_SOURCE:
-                if (e->kind == E_V) {
-                    x->b[i] = drive_of(x, e);
-                    break;
+            const Prim *pr = &prims[e->kind];
+            if (pr->reflect) { /* its descriptor's stamp: a name as it is, else a statement */
+                const char *b = stamp(x, pr->reflect,
+                                      (StampArgs){.a = x->react[i] >= 0 ? format("s_a%d", x->react[i]) : NULL,
+                                                  .e = pr->wd == WD_SOURCE ? drive_of(x, e) : NULL,
+                                                  .R = format("k_R%d", i)});
+                if (plain(b))
+                    x->b[i] = b;
+                else {
+                    put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, b, e->name);
+                    x->b[i] = tb;
                 }
-                put(x, tb, "        const real t_b%d = -k_R%d * %s; /* %s */\n", i, i, drive_of(x, e), e->name);
-                x->b[i] = tb;
-                break;
+                continue;
+            }
+            switch (pr->wd) {
             case WD_DELAY: {
                 int k = x->line_of[n->elem];
                 put(x, tb, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
@@ -729,7 +778,7 @@ static void emit_forward(Ctx *x) {
                 }
                 break;
             }
-            case WD_ROOT: unreachable();
+            default: unreachable();
             }
             continue;
         }
@@ -1581,8 +1630,8 @@ static const char *idle_text(Ctx *x, Names *live) {
     for (int i = 0; i < x->w->nnodes; i++) {
         const WNode *nd = x->w->nodes[i];
         if (nd->kind == W_LEAF && x->idle[nd->root] && x->react[i] >= 0)
-            emit(&hold, "            s_b%d = %ss_a%d;\n", x->react[i],
-                 prims[x->c->elems[nd->elem].kind].wd == WD_HOLD_NEG ? "-" : "", x->react[i]);
+            emit(&hold, "            s_b%d = %s;\n", x->react[i],
+                 stamp(x, prims[x->c->elems[nd->elem].kind].reflect, (StampArgs){.a = format("s_a%d", x->react[i])}));
     }
     const char *text = format("        if (%s) {\n            /* the contacts are open: the parts behind them wait */\n"
                               "%s            for (; n < t_end; n++) {\n%s            }\n        }\n",
@@ -1892,15 +1941,11 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
         int r = x->react[i];
         if (r < 0)
             continue;
-        bool cap = prims[x->c->elems[x->w->nodes[i]->elem].kind].state == 'C';
-        const char *R = dbl(x, format("st->c_R[%d]", i));
-        const char *v = dbl(x, format("(st->s_a[%d] + st->s_b[%d])", r, r));
-        const char *j = dbl(x, format("(st->s_a[%d] - st->s_b[%d])", r, r));
-        emit(kirch, "    react[%d] = %s;\n", r, cap ? format("0.5 * %s", v) : format("0.5 * %s / %s", j, R));
-        if (cap)
-            emit(o, "    { double v = 0.5 * %s; E += 0.25 / (st->fs * %s) * v * v; }\n", v, R);
-        else
-            emit(o, "    { double i = 0.5 * %s / %s; E += 0.25 * %s / st->fs * i * i; }\n", j, R, R);
+        const Prim *pr = &prims[x->c->elems[x->w->nodes[i]->elem].kind];
+        StampArgs g = {.a = format("st->s_a[%d]", r), .b = format("st->s_b[%d]", r), .R = format("st->c_R[%d]", i)};
+        g.x = stamp(x, pr->stored, g);
+        emit(kirch, "    react[%d] = %s;\n", r, g.x);
+        emit(o, "    { %s }\n", stamp(x, pr->energy, g));
     }
 }
 
@@ -1920,7 +1965,7 @@ void wdf_ic_settable(const Wdf *w, bool *set) {
         const Elem *e = &c->elems[n->elem];
         int nd = e->n[1] == 0 ? e->n[0] : e->n[0] == 0 ? e->n[1] : 0;
         if (nd)
-            set[2 * (nd - 1) + (prims[e->kind].state != 'C')] = true;
+            set[2 * (nd - 1) + (prims[e->kind].strike == 'x')] = true;
     }
     for (int b = 0; b < w->nroots; b++)
         for (int j = 0; j < w->roots[b].nnl; j++) {
@@ -1965,14 +2010,12 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                 const WNode *n = x->w->nodes[i];
                 const Elem *e = &c->elems[n->elem];
                 int sg = e->n[0] == nd && e->n[1] == 0 ? 1 : e->n[1] == nd && e->n[0] == 0 ? -1 : 0;
-                /* v(node) sets a charge, x(node) a flux */
-                if (!sg || (prims[e->kind].state == 'C') != (fn == 'v'))
+                /* the target its descriptor names: v(node) a charge, x(node) a flux */
+                if (!sg || prims[e->kind].strike != fn)
                     continue;
-                if (prims[e->kind].state == 'C')
-                    emit(&t, "            react[%d] = %svalues[k];\n", x->react[i], sg > 0 ? "" : "-");
-                else
-                    emit(&t, "            react[%d] = %svalues[k] / (0.5 * %s / st->fs);\n", x->react[i],
-                         sg > 0 ? "" : "-", dbl(x, format("st->c_R[%d]", i)));
+                emit(&t, "            react[%d] = %s;\n", x->react[i],
+                     stamp(x, prims[e->kind].struck,
+                           (StampArgs){.x = sg > 0 ? "values[k]" : "-values[k]", .R = format("st->c_R[%d]", i)}));
             }
             /* a contact's compression is set from either of its nodes: its
              * distance from what it strikes, negative while apart */

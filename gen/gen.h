@@ -575,6 +575,10 @@ typedef enum {
 
 enum { ROOT_NEVER, ROOT_IDEAL, ROOT_ALWAYS };
 
+/* Its stamps are C text the printer (emit.c) fills in: $a is the wave it
+ * took in last (incident), $b the wave it reflected, $e its drive, $R its
+ * port resistance, $x a value the stamp says; D(...) is computed in
+ * double in a float voice.  A stamp a primitive does not have is NULL. */
 typedef struct Prim {
     const char *name;
     const char *law;   /* in its value: R, C, L, e and R, j and R, Z0 */
@@ -583,6 +587,11 @@ typedef struct Prim {
     char state;        /* what it stores between samples: 'C' a charge (its voltage), 'L' a flux (its current), 0 nothing */
     int root;          /* ROOT_*: when it joins the root adaptor (ROOT_IDEAL: without a resistance) */
     int ic, ic_resistive; /* how it enters the initial-condition solve (IC_*), ideal and with a resistance */
+    const char *reflect;  /* the wave it reflects ($a: its held wave); NULL: a line or waveguide prints it */
+    const char *stored;   /* what it stores (its voltage, its current), from its waves $a and $b */
+    const char *energy;   /* statements adding its stored energy to E, $x being what it stores */
+    char strike;          /* the strike target that sets what it stores, between its node and ground: 'v' or 'x' */
+    const char *struck;   /* what it stores, from that target's value $x */
 } Prim;
 
 extern const Prim prims[]; /* by ElemKind */
