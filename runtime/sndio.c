@@ -142,6 +142,7 @@ wdrt_result wdrt_wav_read(const char *path, int *nch, double *fs,
     }
     if (info.channels <= 0 || info.frames < 0) {
         sf_close(f);
+        fprintf(stderr, "wdrt: %s: holds no channel\n", path);
         return WDRT_FORMAT;
     }
     /* Integer formats read as [-1, 1); float files keep their values. */
@@ -167,6 +168,15 @@ wdrt_result wdrt_wav_read(const char *path, int *nch, double *fs,
         fprintf(stderr, "wdrt: %s: file ends early\n", path);
         return WDRT_IO;
     }
+    /* a float file can hold NaN or infinities, which no sound made of it survives */
+    for (size_t i = 0; i < total; i++)
+        if (!isfinite(buf[i])) {
+            fprintf(stderr, "wdrt: %s: the sample at frame %zu, channel %zu, is %s\n", path,
+                    i / (size_t)info.channels, i % (size_t)info.channels + 1,
+                    isnan(buf[i]) ? "not a number" : "infinite");
+            free(buf);
+            return WDRT_FORMAT;
+        }
     *frames = buf;
     *nframes = (long)got;
     *nch = info.channels;

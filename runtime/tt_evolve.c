@@ -1215,12 +1215,20 @@ static int take_target(evo *e) {
     long n;
     wdrt_result r = wdrt_wav_read(o->target, &nch, &e->fs, &frames, &n);
     if (r != WDRT_OK) {
-        fprintf(stderr, "wdrt evolve: error: cannot read '%s': %s\n", o->target, wdrt_result_str(r));
+        /* the reader has said why, but for memory */
+        fprintf(stderr, "wdrt evolve: error: cannot read the target '%s'%s\n", o->target,
+                r == WDRT_OUT_OF_MEMORY ? ": out of memory" : "");
         return EXIT_INPUT;
     }
     if (n < 1 || nch < 1) {
         free(frames);
         fprintf(stderr, "wdrt evolve: error: '%s' holds no sound\n", o->target);
+        return EXIT_INPUT;
+    }
+    if (!(e->fs >= 1000 && e->fs <= 768000)) {
+        free(frames);
+        fprintf(stderr, "wdrt evolve: error: '%s' is at %g Hz; a target's rate lies between 1000 and 768000 Hz\n",
+                o->target, e->fs);
         return EXIT_INPUT;
     }
     if (o->rate && o->rate != e->fs) {
@@ -1236,6 +1244,15 @@ static int take_target(evo *e) {
         frames[i] = s / nch;
     }
     e->n = o->seconds && o->seconds * e->fs < n ? (long)fmax(1, floor(o->seconds * e->fs)) : n;
+    long loud = 0;
+    while (loud < e->n && frames[loud] == 0)
+        loud++;
+    if (loud == e->n) {
+        free(frames);
+        fprintf(stderr, "wdrt evolve: error: '%s' is silent%s: there is nothing to evolve towards\n", o->target,
+                e->n < n ? " over the --seconds asked" : "");
+        return EXIT_INPUT;
+    }
     e->sp = tt_evo_spectra_new(frames, e->n, e->fs);
     free(frames);
     return e->sp ? 0 : out_of_memory();

@@ -619,7 +619,23 @@ static void test_command_line(void **s) {
     snprintf(want, sizeof want, "%s:2:5: error:", bad);
     expect(1, want, bad, "--quiet", "-o", dir, NULL);
     expect(1, "cannot read", in_dir(0, "missing.tt"), "--quiet", "-o", dir, NULL);
-    expect(1, "cannot read 'missing.wav'", seed, "--target", "missing.wav", "--quiet", "-o", dir, NULL);
+    expect(1, "cannot read the target 'missing.wav'", seed, "--target", "missing.wav", "--quiet", "-o", dir, NULL);
+    /* a target of NaN, of silence or at a rate no render takes is refused, not evolved towards */
+    double y[4800];
+    for (int i = 0; i < 4800; i++)
+        y[i] = 0.25 * sin(0.05 * i);
+    const char *sil = in_dir(0, "silent.wav"), *slow = in_dir(1, "slow.wav"), *nan_ = in_dir(4, "nan.wav");
+    assert_int_equal(wdrt_wav_write(slow, 1, 500, y, 4800), WDRT_OK);
+    expect(1, "/slow.wav' is at 500 Hz; a target's rate lies between 1000 and 768000 Hz", seed, "--target", slow,
+           "--quiet", "-o", dir, NULL);
+    y[4000] = NAN;
+    assert_int_equal(wdrt_wav_write(nan_, 1, 8000, y, 4800), WDRT_OK);
+    expect(1, "nan.wav: the sample at frame 4000, channel 1, is not a number", seed, "--target", nan_, "--quiet",
+           "-o", dir, NULL);
+    memset(y, 0, sizeof y);
+    assert_int_equal(wdrt_wav_write(sil, 1, 8000, y, 4800), WDRT_OK);
+    expect(1, "/silent.wav' is silent: there is nothing to evolve towards", seed, "--target", sil, "--quiet", "-o",
+           dir, NULL);
     expect(1, "cannot read 'missing.txt'", seed, "--ratings", "missing.txt", "--quiet", "-o", dir, NULL);
     /* voice nodes are refused where they are written */
     tl_write_file(g_dir, "v.wdn", "* a netlist (the reader only reads it)\n");
