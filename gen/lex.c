@@ -9,6 +9,8 @@
  * of letters, digits, '_' and '.'; whether a word is a number is decided by
  * the parser where it expects one, so SPICE node names such as `1` work. */
 #include <ctype.h>
+#include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -47,10 +49,11 @@ bool tok_is(const Token *t, const char *s) {
     return (int)strlen(s) == t->len && !strncmp(t->text, s, (size_t)t->len);
 }
 
-/* Scale suffixes, case-insensitive; "meg" before "m". */
+/* Scale suffixes, case-insensitive, SPICE's: "meg" and "mil" (a
+ * thousandth of an inch) before "m". */
 static const struct { const char *s; double v; } suffixes[] = {
-    {"meg", 1e6}, {"f", 1e-15}, {"p", 1e-12}, {"n", 1e-9}, {"u", 1e-6},
-    {"m", 1e-3},  {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
+    {"meg", 1e6}, {"mil", 25.4e-6}, {"f", 1e-15}, {"p", 1e-12}, {"n", 1e-9},
+    {"u", 1e-6},  {"m", 1e-3},      {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
 };
 
 /* Unit words that may follow a number and its suffix (ignored), as
@@ -81,11 +84,13 @@ bool lex_number_in(const char *s, int len, double *out, const char **why, bool d
         *why = "hexadecimal numbers are not accepted";
         return false;
     }
+    errno = 0;
     double v = strtod(buf, &end);
     if (end == buf) {
         *why = "not a number";
         return false;
     }
+    bool under = errno == ERANGE && fabs(v) < 1; /* 0 or subnormal from digits that were not 0 */
     const char *rest = end;
     double scale = 1;
     if (!strcmp(rest, "kg")) /* the SI unit of mass, not kilo-grams of anything */
@@ -112,6 +117,10 @@ bool lex_number_in(const char *s, int len, double *out, const char **why, bool d
     v *= scale;
     if (!isfinite(v)) {
         *why = "number out of range";
+        return false;
+    }
+    if (under || (v != 0 && fabs(v) < DBL_MIN)) {
+        *why = "number out of range (its magnitude is below 2.2e-308)";
         return false;
     }
     *out = v;

@@ -45,6 +45,7 @@
 
 #include <assert.h>
 #include <errno.h>
+#include <float.h>
 #include <limits.h>
 #include <locale.h>
 #include <math.h>
@@ -335,13 +336,14 @@ static double decimal_value(const char *s, size_t n)
     return v;
 }
 
-/* Scale suffixes, case-insensitive; "meg" before "m" (gen/lex.c's table). */
+/* Scale suffixes, case-insensitive; "meg" and "mil" before "m"
+ * (gen/lex.c's table). */
 static const struct {
     const char *s;
     double v;
 } scales[] = {
-    {"meg", 1e6}, {"f", 1e-15}, {"p", 1e-12}, {"n", 1e-9}, {"u", 1e-6},
-    {"m", 1e-3},  {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
+    {"meg", 1e6}, {"mil", 25.4e-6}, {"f", 1e-15}, {"p", 1e-12}, {"n", 1e-9},
+    {"u", 1e-6},  {"m", 1e-3},      {"k", 1e3},   {"g", 1e9},   {"t", 1e12},
 };
 
 /* Unit words that may end a number (ignored): gen/lex.c's, then the
@@ -400,6 +402,12 @@ static int read_number(const char *s, size_t n, double *out, char *why, size_t w
     }
     if (!isfinite(v)) {
         snprintf(why, whylen, "number out of range");
+        return -1;
+    }
+    /* a mantissa that is not 0 read as 0 or a subnormal has underflowed */
+    size_t nz = strcspn(buf, "123456789eE");
+    if (fabs(v) < DBL_MIN && nz < m && buf[nz] != 'e' && buf[nz] != 'E') {
+        snprintf(why, whylen, "number out of range (its magnitude is below 2.2e-308)");
         return -1;
     }
     *out = v;

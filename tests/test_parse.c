@@ -212,6 +212,10 @@ static void test_malformed_numbers(void **state) {
                  "t.wdn:3:8: error: malformed number '0x10': hexadecimal numbers are not accepted");
     expect_error(".input in\n" SRC "R1 a 0 1e999\n",
                  "t.wdn:3:8: error: malformed number '1e999': number out of range");
+    expect_error(".input in\n" SRC "R1 a 0 1e-400\n",
+                 "t.wdn:3:8: error: malformed number '1e-400': number out of range (its magnitude is below 2.2e-308)");
+    expect_error(".input in\n" SRC "R1 a 0 1e-300f\n",
+                 "t.wdn:3:8: error: malformed number '1e-300f': number out of range (its magnitude is below 2.2e-308)");
     expect_error(".param x 1.2.3\n",
                  "t.wdn:1:10: error: malformed number '1.2.3': unknown scale suffix or unit '.3'");
     expect_error(".rate 48q\n",
@@ -887,7 +891,7 @@ static void test_spice_numbers(void **state) {
                                   "R1 a b 4.7k\nR2 b 0 1meg\nC1 a 0 10uF\nL1 b 0 2.2n\n"
                                   "R3 a 0 1e-3\nR4 a 0 4.7kOhm\nR5 a 0 1MEG\nC2 a 0 1.5pF\n"
                                   "L2 a 0 10mH\nR6 a 0 .5\nR7 a 0 2.5e+3\nC3 a 0 3f\nR8 a 0 1G\n"
-                                  "R9 a 0 R={2*(1k+500)}\nR10 a 0 1T\n");
+                                  "R9 a 0 R={2*(1k+500)}\nR10 a 0 1T\nR11 a 0 1000mil\n");
     check_value(c, "R1", 4700);
     check_value(c, "R2", 1e6);
     check_value(c, "C1", 1e-5);
@@ -903,6 +907,7 @@ static void test_spice_numbers(void **state) {
     check_value(c, "R8", 1e9);
     check_value(c, "R9", 3000);
     check_value(c, "R10", 1e12);
+    check_value(c, "R11", 1000 * 25.4e-6); /* SPICE's mil, a thousandth of an inch */
 }
 
 static void test_comments_and_continuations(void **state) {

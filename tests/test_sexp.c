@@ -170,11 +170,13 @@ static void numbers_with_every_suffix_and_unit(void **state)
         {"1E+3k", 1e3 * 1e3},   {"1e-3", 1e-3},         {".5", 0.5},
         {"-.5", -0.5},          {"+.5", 0.5},           {"1.", 1},
         {"1.e2", 100},          {"+7", 7},              {"-3dB", -3},
+        {"2mil", 2 * 25.4e-6},  {"1MIL", 25.4e-6},      {"0e-400", 0},
+        {"0.000", 0},
         {"6dB", 6},             {"-1kdB", -1e3},        {"440Hz", 440},
         {"1kHz", 1e3},          {"10ms", 10 * 1e-3},    {"2s", 2},
         {"1kg", 1},             {"5ohm", 5},            {"4.7kOhm", 4.7 * 1e3},
         {"1V", 1},              {"2A", 2},              {"3H", 3},
-        {"2km", 2 * 1e3},       {"3mm", 3 * 1e-3},      {"1e-400", 0},
+        {"2km", 2 * 1e3},       {"3mm", 3 * 1e-3},
         {"1e308", 1e308},
         /* SPICE's traps, kept as the netlist has them: F, N and M are scales */
         {"1F", 1e-15},          {"1N", 1e-9},           {"5MHz", 5 * 1e-3},
@@ -471,6 +473,10 @@ static void error_numbers(void **state)
                           "range\n  1e999\n  ^\n");
     expect_error("(x 1e303meg)", PATH ":1:4: error: malformed number '1e303meg': number out "
                                  "of range\n  (x 1e303meg)\n     ^\n");
+    expect_error("1e-400", PATH ":1:1: error: malformed number '1e-400': number out of range (its "
+                           "magnitude is below 2.2e-308)\n  1e-400\n  ^\n");
+    expect_error("(x 1e-300f)", PATH ":1:4: error: malformed number '1e-300f': number out of range (its "
+                                "magnitude is below 2.2e-308)\n  (x 1e-300f)\n     ^\n");
     expect_error("1.2.3", PATH ":1:1: error: malformed number '1.2.3': unknown scale suffix "
                           "or unit '.3'\n  1.2.3\n  ^\n");
     expect_error("440hz", PATH ":1:1: error: malformed number '440hz': unknown scale suffix "
