@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "gen.h"
@@ -174,9 +175,16 @@ static void *checked_calloc(size_t n, size_t size, const char *what) {
 
 /* ---- input signals ---- */
 
+/* An input, made block by block as the render reaches it: a WAV file's
+ * first channel (then silence), a deck source's time function, or a
+ * spec's impulse, step, sine or noise. */
 typedef struct Signal {
-    double *data;
+    char kind;         /* 'w' a file, 'f' a time function, 'i' 's' 'n' 'r': impulse, step, sine, noise; 0 none */
+    double *data;      /* 'w': the file's n samples */
     long n;
+    const SrcFn *fn;   /* 'f' */
+    double a, f;       /* amplitude; a sine's frequency */
+    uint32_t seed;     /* 'r': the noise's state, which runs on from block to block */
 } Signal;
 
 /* Parses SPEC's kind, frequency (sine) and amplitude; a usage error for
@@ -214,27 +222,32 @@ static void parse_spec(const char *spec, double fs, char kind[32], double *f, do
     }
 }
 
-static Signal make_signal(const char *spec, double fs, long n) {
+static Signal make_signal(const char *spec, double fs) {
     char kind[32];
-    double a, f;
-    parse_spec(spec, fs, kind, &f, &a);
-    Signal s = {checked_calloc((size_t)n + 1, sizeof(double), format("input '%s'", spec)), n};
-    uint32_t seed = 0x9e3779b9u;
-    for (long i = 0; i < n; i++) {
-        if (!strcmp(kind, "impulse"))
-            s.data[i] = i == 0 ? a : 0;
-        else if (!strcmp(kind, "step"))
-            s.data[i] = a;
-        else if (!strcmp(kind, "sine"))
-            s.data[i] = a * sin(2 * M_PI * f * (double)i / fs);
-        else {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            s.data[i] = a * (2.0 * seed / 4294967295.0 - 1);
+    Signal s = {0};
+    parse_spec(spec, fs, kind, &s.f, &s.a);
+    s.kind = !strcmp(kind, "impulse") ? 'i' : !strcmp(kind, "step") ? 's' : !strcmp(kind, "sine") ? 'n' : 'r';
+    s.seed = 0x9e3779b9u;
+    return s;
+}
+
+/* Frames pos .. pos + m - 1 of s into out (blocks asked in order). */
+static void signal_fill(Signal *s, long pos, long m, double fs, double *out) {
+    for (long j = 0; j < m; j++) {
+        long i = pos + j;
+        switch (s->kind) {
+        case 'w': out[j] = i < s->n ? s->data[i] : 0; break;
+        case 'f': out[j] = srcfn_at(s->fn, (double)i / fs, 1 / fs); break;
+        case 'i': out[j] = i == 0 ? s->a : 0; break;
+        case 's': out[j] = s->a; break;
+        case 'n': out[j] = s->a * sin(2 * M_PI * s->f * (double)i / fs); break;
+        default:
+            s->seed ^= s->seed << 13;
+            s->seed ^= s->seed >> 17;
+            s->seed ^= s->seed << 5;
+            out[j] = s->a * (2.0 * s->seed / 4294967295.0 - 1);
         }
     }
-    return s;
 }
 
 static bool is_wav(const char *spec) {
@@ -254,7 +267,7 @@ static Signal read_wav_input(const char *path, double fs) {
     }
     if (fabs(wfs - fs) > 0.5)
         usage_error("input file rate differs from the render rate (%s)", format("%g Hz vs %g Hz", wfs, fs));
-    Signal s = {checked_calloc((size_t)nf + 1, sizeof(double), format("input '%s'", path)), nf};
+    Signal s = {.kind = 'w', .data = checked_calloc((size_t)nf + 1, sizeof(double), format("input '%s'", path)), .n = nf};
     for (long i = 0; i < nf; i++) {
         s.data[i] = frames[i * nch];
         if (!isfinite(s.data[i]))
@@ -436,8 +449,6 @@ typedef struct Render {
     Signal in[64];
     Event *ev;
     int nev;
-    double *chan;     /* n frames of each output, channel after channel */
-    double *outbuf;   /* the same, interleaved for the WAV */
 } Render;
 
 static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *rd) {
@@ -482,27 +493,12 @@ static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *r
     }
     /* a deck's sources that no --input drives: their time functions */
     for (int k = o->ninputs; k < c->ninputs; k++)
-        if (c->input_fn[k]) {
-            Signal *s = &rd->in[k];
-            *s = (Signal){checked_calloc((size_t)n + 1, sizeof(double), format("input '%s'", c->inputs[k])), n};
-            for (long i = 0; i < n; i++)
-                s->data[i] = srcfn_at(c->input_fn[k], (double)i / fs, 1 / fs);
-        }
-    for (int k = 0; k < o->ninputs; k++) {
-        Signal *s = &rd->in[k];
-        if (!is_wav(o->inputs[k])) {
-            *s = make_signal(o->inputs[k], fs, n);
-        } else if (s->n < n) { /* pad a short file with silence */
-            double *d = checked_calloc((size_t)n + 1, sizeof(double), format("input '%s'", o->inputs[k]));
-            memcpy(d, s->data, sizeof(double) * (size_t)s->n);
-            free(s->data);
-            s->data = d;
-            s->n = n;
-        }
-    }
+        if (c->input_fn[k])
+            rd->in[k] = (Signal){.kind = 'f', .fn = c->input_fn[k]};
+    for (int k = 0; k < o->ninputs; k++)
+        if (!is_wav(o->inputs[k]))
+            rd->in[k] = make_signal(o->inputs[k], fs);
     rd->n = n;
-    rd->chan = checked_calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double), "the output");
-    rd->outbuf = checked_calloc((size_t)n * (size_t)c->nouts + 1, sizeof(double), "the output");
 }
 
 /* The temporary folder a voice is emitted and compiled in, removed at
@@ -577,14 +573,150 @@ static long first_nonfinite(const double *x, long n) {
     return -1;
 }
 
-/* Runs the voice over the render's frames, events applied at their frame;
- * returns 0, or EXIT_TOOL once an output goes non-finite. */
-static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, void *st, double fs, Render *rd) {
-    double *ptr_o[64];
+/* Where a render's samples go as they are made: the WAV file and the CSV
+ * file, if asked; either is removed if the render fails. */
+typedef struct Sink {
+    const char *wav, *csv;
+    const char *wav_to, *csv_to; /* the files written: temporaries beside them, or they themselves */
+    wdrt_wav_out *w;
+    FILE *f;
+    bool failed; /* a write failed */
+    double peak;
+    bool tty, line; /* progress is shown; a progress line is open */
+    double last;    /* when it was last shown */
+} Sink;
+
+/* Ends an open progress line, before a message. */
+static void end_line(Sink *k) {
+    if (k->line)
+        fputc('\n', stderr);
+    k->line = false;
+}
+
+/* A new file beside path that rename() puts in its place once it is
+ * whole, so that a render that fails leaves a file of that name as it
+ * was; path itself where it names a device or a FIFO, or no temporary
+ * can be made there. */
+static const char *temp_beside(const char *path) {
+    struct stat sb;
+    if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
+        return path;
+    char *t = format("%s.XXXXXX", path);
+    int fd = mkstemp(t);
+    if (fd < 0)
+        return path;
+    mode_t mask = umask(0);
+    umask(mask);
+    fchmod(fd, 0666 & ~mask); /* as fopen would make it */
+    close(fd);
+    return t;
+}
+
+/* Puts the temporary `to` in path's place (or removes it, failed). */
+static bool settle_file(const char *to, const char *path, bool failed) {
+    struct stat sb;
+    if (to == path) { /* written in place: a half-written regular file goes */
+        if (failed && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
+            remove(path);
+        return !failed;
+    }
+    if (failed)
+        return remove(to), false;
+    if (rename(to, path) == 0)
+        return true;
+    remove(to);
+    return false;
+}
+
+static int sink_open(const Opts *o, const Circuit *c, double fs, Sink *k) {
+    *k = (Sink){o->render, o->csv, .tty = isatty(STDERR_FILENO)};
+    k->wav_to = temp_beside(k->wav);
+    if (wdrt_wav_open(k->wav_to, c->nouts, fs, &k->w) != WDRT_OK) {
+        fprintf(stderr, "wdc: error: cannot write '%s'\n", k->wav);
+        settle_file(k->wav_to, k->wav, true);
+        return EXIT_USAGE;
+    }
+    if (k->csv && !(k->f = fopen(k->csv_to = temp_beside(k->csv), "w"))) {
+        fprintf(stderr, "wdc: error: cannot write '%s'\n", k->csv);
+        settle_file(k->csv_to, k->csv, true);
+        wdrt_wav_close(k->w);
+        settle_file(k->wav_to, k->wav, true);
+        return EXIT_USAGE;
+    }
+    return 0;
+}
+
+/* m interleaved frames of nch channels to the files. */
+static void sink_put(Sink *k, const double *frames, long m, int nch) {
+    for (long i = 0; i < m * nch; i++)
+        k->peak = fmax(k->peak, fabs(frames[i]));
+    const char *bad = NULL;
+    if (wdrt_wav_append(k->w, frames, m) != WDRT_OK)
+        bad = k->wav;
+    for (long i = 0; k->f && !bad && i < m; i++)
+        for (int c = 0; c < nch; c++)
+            if (fprintf(k->f, "%.17g%c", frames[i * nch + c], c + 1 < nch ? ',' : '\n') < 0)
+                bad = k->csv;
+    if (bad && !k->failed) {
+        end_line(k);
+        fprintf(stderr, "wdc: error: cannot write '%s'\n", bad);
+    }
+    k->failed |= bad != NULL;
+}
+
+/* Closes the files; status is the render's: on failure (or a write that
+ * failed) they are removed.  Returns the exit status. */
+static int sink_close(Sink *k, int status) {
+    end_line(k);
+    if (wdrt_wav_close(k->w) != WDRT_OK && !k->failed) {
+        fprintf(stderr, "wdc: error: cannot write '%s'\n", k->wav);
+        k->failed = true;
+    }
+    if (k->f && fclose(k->f) != 0 && !k->failed) {
+        fprintf(stderr, "wdc: error: cannot write '%s'\n", k->csv);
+        k->failed = true;
+    }
+    if (status == 0 && k->failed)
+        status = EXIT_USAGE;
+    if (!settle_file(k->wav_to, k->wav, status != 0) && status == 0) {
+        fprintf(stderr, "wdc: error: cannot write '%s': %s\n", k->wav, strerror(errno));
+        status = EXIT_USAGE;
+    }
+    if (k->csv && !settle_file(k->csv_to, k->csv, status != 0) && status == 0) {
+        fprintf(stderr, "wdc: error: cannot write '%s': %s\n", k->csv, strerror(errno));
+        status = EXIT_USAGE;
+    }
+    return status;
+}
+
+/* "wdc: rendering NAME: 42%" on a terminal, at most ten times a second. */
+static void show_progress(Sink *k, const char *name, long pos, long n) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    double now = (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+    if (!k->tty || now - k->last < 0.1)
+        return;
+    k->last = now;
+    k->line = true;
+    fprintf(stderr, "\r\033[Kwdc: rendering %s: %3.0f%%", name, 100.0 * (double)pos / (double)n);
+    fflush(stderr);
+}
+
+/* Runs the voice over the render's frames, events applied at their frame,
+ * each block's inputs made and its outputs written as it goes; returns
+ * 0, or EXIT_TOOL once an output goes non-finite. */
+static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, void *st, double fs, Render *rd,
+                      Sink *sk) {
+    enum { BLOCK = 64 };
+    double *ptr_o[64], inb[64][BLOCK], outb[64][BLOCK], frames[64 * BLOCK];
     const double *ptr_i[64];
     long n = rd->n, pos = 0;
     int ei = 0;
     cls->init(st, fs);
+    for (int k = 0; k < c->ninputs; k++)
+        ptr_i[k] = rd->in[k].kind ? inb[k] : NULL;
+    for (int k = 0; k < c->nouts; k++)
+        ptr_o[k] = outb[k];
     while (pos < n) {
         for (; ei < rd->nev && rd->ev[ei].frame <= pos; ei++) {
             const Event *e = &rd->ev[ei];
@@ -595,22 +727,36 @@ static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, voi
                         (double)pos / fs);
         }
         long end = ei < rd->nev && rd->ev[ei].frame < n ? rd->ev[ei].frame : n;
-        if (end - pos > 64)
-            end = pos + 64;
+        if (end - pos > BLOCK)
+            end = pos + BLOCK;
+        long m = end - pos;
         for (int k = 0; k < c->ninputs; k++)
-            ptr_i[k] = k < o->ninputs || c->input_fn[k] ? rd->in[k].data + pos : NULL;
-        for (int k = 0; k < c->nouts; k++)
-            ptr_o[k] = rd->chan + (size_t)k * (size_t)n + (size_t)pos;
-        wdrt_render(cls, st, ptr_i, ptr_o, end - pos, 64);
+            if (rd->in[k].kind)
+                signal_fill(&rd->in[k], pos, m, fs, inb[k]);
+        wdrt_render(cls, st, ptr_i, ptr_o, m, BLOCK);
         for (int k = 0; k < c->nouts; k++) {
-            long i = first_nonfinite(ptr_o[k], end - pos);
+            long i = first_nonfinite(ptr_o[k], m);
             if (i >= 0) {
+                end_line(sk);
                 fprintf(stderr, "wdc: error: output '%s' went non-finite at %.6g s (frame %ld): the voice "
                         "overflowed; nothing written\n", c->outs[k].name, (double)(pos + i) / fs, pos + i);
                 return EXIT_TOOL;
             }
         }
+        for (long i = 0; i < m; i++)
+            for (int k = 0; k < c->nouts; k++)
+                frames[i * c->nouts + k] = outb[k][i];
+        sink_put(sk, frames, m, c->nouts);
+        if (sk->failed)
+            return EXIT_USAGE;
         pos = end;
+        show_progress(sk, c->name, pos, n);
+    }
+    if (sk->tty) {
+        fprintf(stderr, "\r\033[Kwdc: rendered %s to %s: %.6g s, %d channel%s at %g Hz, %s\n", c->name, sk->wav,
+                (double)n / fs, c->nouts, c->nouts > 1 ? "s" : "", fs,
+                sk->peak > 0 ? format("peak %.3g", sk->peak) : "silent");
+        sk->line = false;
     }
     unsigned long js[WDV_SOLVE_N] = {0};
     if (cls->solve_stats)
@@ -622,38 +768,17 @@ static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, voi
     return 0;
 }
 
-static int render_write(const Opts *o, const Circuit *c, double fs, const Render *rd) {
-    long n = rd->n;
-    for (long i = 0; i < n; i++)
-        for (int k = 0; k < c->nouts; k++)
-            rd->outbuf[i * c->nouts + k] = rd->chan[(size_t)k * (size_t)n + (size_t)i];
-    int status = 0;
-    if (wdrt_wav_write(o->render, c->nouts, fs, rd->outbuf, n) != WDRT_OK) {
-        fprintf(stderr, "wdc: error: cannot write '%s'\n", o->render);
-        status = EXIT_USAGE;
-    }
-    if (o->csv) {
-        FILE *f = fopen(o->csv, "w");
-        if (!f) {
-            fprintf(stderr, "wdc: error: cannot write '%s'\n", o->csv);
-            return EXIT_USAGE;
-        }
-        for (long i = 0; i < n; i++)
-            for (int k = 0; k < c->nouts; k++)
-                fprintf(f, "%.17g%c", rd->outbuf[i * c->nouts + k], k + 1 < c->nouts ? ',' : '\n');
-        if (fclose(f) != 0) {
-            fprintf(stderr, "wdc: error: cannot write '%s'\n", o->csv);
-            status = EXIT_USAGE;
-        }
-    }
-    return status;
-}
-
 /* Compiles the voice emitted in the build folder, loads it and renders. */
 static int render(const Opts *o, const Circuit *c, double fs, Render *rd) {
     const char *cfile = format("%s/%s.c", build_dir, c->name), *so = format("%s/%s.so", build_dir, c->name);
     wdrt_voice_lib lib;
+    if (isatty(STDERR_FILENO)) {
+        fprintf(stderr, "wdc: compiling %s", c->name);
+        fflush(stderr);
+    }
     wdrt_result r = wdrt_voice_compile(cfile, so, NULL, "-O2");
+    if (isatty(STDERR_FILENO))
+        fputs("\r\033[K", stderr);
     if (r == WDRT_OK)
         r = wdrt_voice_open(so, c->name, &lib);
     if (r != WDRT_OK) {
@@ -669,9 +794,10 @@ static int render(const Opts *o, const Circuit *c, double fs, Render *rd) {
         wdrt_voice_close(&lib);
         return EXIT_TOOL;
     }
-    int status = render_run(o, c, cls, st, fs, rd);
+    Sink sk;
+    int status = sink_open(o, c, fs, &sk);
     if (status == 0)
-        status = render_write(o, c, fs, rd);
+        status = sink_close(&sk, render_run(o, c, cls, st, fs, rd, &sk));
     free(st);
     wdrt_voice_close(&lib);
     return status;

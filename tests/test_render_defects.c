@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "testlib.h"
@@ -67,20 +68,50 @@ static void test_seconds_limit(void **s) {
     assert_err_has("--seconds");
 }
 
-/* Two hours of three outputs at 48 kHz do not fit under a 1 GB
- * address-space limit: the failed allocation is reported with status 3,
- * not a crash.  A day of them does not fit in a WAV file (4 GiB): refused
- * before anything is allocated. */
+/* A render streams: 20000 s of three outputs at 1 kHz (what held them
+ * whole took 1.1 GB) renders under a 1 GB address-space limit, each block
+ * made and written as it goes.  A day at 48 kHz does not fit in a WAV
+ * file (4 GiB): refused before anything is rendered. */
 static void test_allocation_failure(void **s) {
     (void)s;
-    int st = tl_system(format("ulimit -v 1000000; bin/wdc netlists/msd.wdn --render %s/x.wav --seconds 7000 "
-                              "--input impulse 2>%s/err.txt", dir, dir));
-    assert_int_equal(st, 3);
-    assert_err_has("out of memory");
+    int st = tl_system(format("ulimit -v 1000000; bin/wdc netlists/msd.wdn --render %s/x.wav --seconds 20000 "
+                              "--rate 1000 --input impulse 2>%s/err.txt", dir, dir));
+    assert_int_equal(st, 0);
+    struct stat sb; /* 3 channels of 32-bit float and a header */
+    assert_int_equal(stat(format("%s/x.wav", dir), &sb), 0);
+    assert_true(sb.st_size > 20000L * 1000 * 3 * 4 && sb.st_size < 20000L * 1000 * 3 * 4 + 256);
+    remove(format("%s/x.wav", dir));
     st = tl_system(format("bin/wdc netlists/msd.wdn --render %s/x.wav --seconds 86400 --input impulse 2>%s/err.txt",
                           dir, dir));
     assert_int_equal(st, 2);
     assert_err_has("86400 s of 3 outputs at 48000 Hz is too long for a WAV file, which holds at most 4 GiB (7456 s)");
+}
+
+/* A render that fails leaves a file of its name as it was (it writes
+ * beside it and renames once whole): the WAV and CSV a good render wrote
+ * survive one that overflows, and no temporary is left. */
+static void test_failed_render_keeps_files(void **s) {
+    (void)s;
+    assert_int_equal(wdc(format("netlists/rlc_series.wdn --render %s/keep.wav --csv %s/keep.csv --seconds 0.01", dir,
+                                dir)), 0);
+    size_t n1;
+    char *wav = read_file(format("%s/keep.wav", dir), &n1), *csv = read_file(format("%s/keep.csv", dir), NULL);
+    assert_non_null(wav);
+    assert_non_null(csv);
+    double sig[480];
+    for (int i = 0; i < 480; i++)
+        sig[i] = i & 1 ? -3e38 : 3e38;
+    assert_int_equal(wdrt_wav_write(format("%s/huge2.wav", dir), 1, 48000, sig, 480), WDRT_OK);
+    assert_int_equal(wdc(format("netlists/rlc_series.wdn --precision float --render %s/keep.wav --csv %s/keep.csv "
+                                "--input %s/huge2.wav", dir, dir, dir)), 3);
+    assert_err_has("nothing written");
+    assert_string_equal(read_file(format("%s/keep.csv", dir), NULL), csv);
+    size_t n2;
+    char *wav2 = read_file(format("%s/keep.wav", dir), &n2);
+    assert_non_null(wav2);
+    assert_int_equal(n2, n1);
+    assert_memory_equal(wav2, wav, n1);
+    assert_int_equal(tl_system(format("ls %s | grep -q 'keep\\.\\(wav\\|csv\\)\\.'", dir)), 1);
 }
 
 /* Event times past the render, or past a day without --seconds, are
@@ -257,6 +288,7 @@ static void test_render_keeps_outdir(void **s) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_seconds_limit),      cmocka_unit_test(test_allocation_failure),
+        cmocka_unit_test(test_failed_render_keeps_files),
         cmocka_unit_test(test_event_times),        cmocka_unit_test(test_input_specs),
         cmocka_unit_test(test_event_values),       cmocka_unit_test(test_nonfinite_output),
         cmocka_unit_test(test_event_diagnostics),  cmocka_unit_test(test_events_fail_fast), cmocka_unit_test(test_targets_that_set_nothing),

@@ -549,7 +549,8 @@ static void fuzz(long iters, uint64_t seed) {
             int nch;
             assert_int_equal(wdrt_scene_render(sc, &o, &y, &nf, &nch, &rate, NULL), WDRT_OK);
             for (long i = 0; i < nf * nch; i++)
-                assert_true(isfinite(y[i]));
+                if (!isfinite(y[i]))
+                    fail_msg("iteration %ld: sample %ld is not finite; the scene:\n%.*s", it, i, (int)n, buf);
             free(y);
             ok++;
         } else {
