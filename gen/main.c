@@ -574,10 +574,11 @@ static long first_nonfinite(const double *x, long n) {
 }
 
 /* Where a render's samples go as they are made: the WAV file and the CSV
- * file, if asked; either is removed if the render fails. */
+ * file, if asked, each written beside its place and put there once whole;
+ * if the render fails, files of their names are left as they were. */
 typedef struct Sink {
     const char *wav, *csv;
-    const char *wav_to, *csv_to; /* the files written: temporaries beside them, or they themselves */
+    char *csv_tmp; /* the CSV written beside it (the WAV writer keeps its own), or NULL: in place */
     wdrt_wav_out *w;
     FILE *f;
     bool failed; /* a write failed */
@@ -593,54 +594,16 @@ static void end_line(Sink *k) {
     k->line = false;
 }
 
-/* A new file beside path that rename() puts in its place once it is
- * whole, so that a render that fails leaves a file of that name as it
- * was; path itself where it names a device or a FIFO, or no temporary
- * can be made there. */
-static const char *temp_beside(const char *path) {
-    struct stat sb;
-    if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
-        return path;
-    char *t = format("%s.XXXXXX", path);
-    int fd = mkstemp(t);
-    if (fd < 0)
-        return path;
-    mode_t mask = umask(0);
-    umask(mask);
-    fchmod(fd, 0666 & ~mask); /* as fopen would make it */
-    close(fd);
-    return t;
-}
-
-/* Puts the temporary `to` in path's place (or removes it, failed). */
-static bool settle_file(const char *to, const char *path, bool failed) {
-    struct stat sb;
-    if (to == path) { /* written in place: a half-written regular file goes */
-        if (failed && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
-            remove(path);
-        return !failed;
-    }
-    if (failed)
-        return remove(to), false;
-    if (rename(to, path) == 0)
-        return true;
-    remove(to);
-    return false;
-}
-
 static int sink_open(const Opts *o, const Circuit *c, double fs, Sink *k) {
     *k = (Sink){o->render, o->csv, .tty = isatty(STDERR_FILENO)};
-    k->wav_to = temp_beside(k->wav);
-    if (wdrt_wav_open(k->wav_to, c->nouts, fs, &k->w) != WDRT_OK) {
+    if (wdrt_wav_open(k->wav, c->nouts, fs, &k->w) != WDRT_OK) {
         fprintf(stderr, "wdc: error: cannot write '%s'\n", k->wav);
-        settle_file(k->wav_to, k->wav, true);
         return EXIT_USAGE;
     }
-    if (k->csv && !(k->f = fopen(k->csv_to = temp_beside(k->csv), "w"))) {
+    if (k->csv && (k->csv_tmp = wdrt_temp_beside(k->csv), !(k->f = fopen(k->csv_tmp ? k->csv_tmp : k->csv, "w")))) {
         fprintf(stderr, "wdc: error: cannot write '%s'\n", k->csv);
-        settle_file(k->csv_to, k->csv, true);
-        wdrt_wav_close(k->w);
-        settle_file(k->wav_to, k->wav, true);
+        wdrt_temp_settle(k->csv_tmp, k->csv, 0);
+        wdrt_wav_abort(k->w);
         return EXIT_USAGE;
     }
     return 0;
@@ -668,21 +631,19 @@ static void sink_put(Sink *k, const double *frames, long m, int nch) {
  * failed) they are removed.  Returns the exit status. */
 static int sink_close(Sink *k, int status) {
     end_line(k);
-    if (wdrt_wav_close(k->w) != WDRT_OK && !k->failed) {
-        fprintf(stderr, "wdc: error: cannot write '%s'\n", k->wav);
-        k->failed = true;
-    }
     if (k->f && fclose(k->f) != 0 && !k->failed) {
         fprintf(stderr, "wdc: error: cannot write '%s'\n", k->csv);
         k->failed = true;
     }
     if (status == 0 && k->failed)
         status = EXIT_USAGE;
-    if (!settle_file(k->wav_to, k->wav, status != 0) && status == 0) {
-        fprintf(stderr, "wdc: error: cannot write '%s': %s\n", k->wav, strerror(errno));
+    if (status != 0)
+        wdrt_wav_abort(k->w);
+    else if (wdrt_wav_close(k->w) != WDRT_OK) {
+        fprintf(stderr, "wdc: error: cannot write '%s'\n", k->wav);
         status = EXIT_USAGE;
     }
-    if (k->csv && !settle_file(k->csv_to, k->csv, status != 0) && status == 0) {
+    if (k->csv && wdrt_temp_settle(k->csv_tmp, k->csv, status == 0) != 0 && status == 0) {
         fprintf(stderr, "wdc: error: cannot write '%s': %s\n", k->csv, strerror(errno));
         status = EXIT_USAGE;
     }

@@ -7,10 +7,13 @@
 #include "wdrt.h"
 #include "sexp.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <sndfile.h>
 
@@ -20,9 +23,52 @@
 struct wdrt_wav_out {
     SNDFILE *f;
     char *path;
+    char *tmp; /* the file written, beside path, or NULL: path itself */
     int nch;
     unsigned long long bytes; /* of samples written */
 };
+
+char *wdrt_temp_beside(const char *path)
+{
+    struct stat sb;
+    if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
+        return NULL; /* a device or a FIFO is written as it is */
+    size_t n = strlen(path);
+    char *t = malloc(n + 8);
+    if (!t)
+        return NULL;
+    memcpy(t, path, n);
+    memcpy(t + n, ".XXXXXX", 8);
+    int fd = mkstemp(t);
+    if (fd < 0) {
+        free(t);
+        return NULL;
+    }
+    mode_t mask = umask(0);
+    umask(mask);
+    (void)fchmod(fd, 0666 & ~mask); /* what creating path itself would give */
+    close(fd);
+    return t;
+}
+
+int wdrt_temp_settle(char *tmp, const char *path, int keep)
+{
+    int r = 0;
+    struct stat sb;
+    if (!tmp) { /* written in place: a half-written regular file goes */
+        if (!keep && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
+            remove(path);
+        return keep ? 0 : -1;
+    }
+    if (!keep || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        errno = e;
+        r = -1;
+    }
+    free(tmp);
+    return keep ? r : -1;
+}
 
 int wdrt_wav_fits(double nframes, int nch)
 {
@@ -53,8 +99,10 @@ wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **o
     }
     memcpy(w->path, path, n);
     w->nch = nch;
-    if (!(w->f = sf_open(path, SFM_WRITE, &info))) {
+    w->tmp = wdrt_temp_beside(path);
+    if (!(w->f = sf_open(w->tmp ? w->tmp : path, SFM_WRITE, &info))) {
         fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(NULL));
+        wdrt_temp_settle(w->tmp, path, 0);
         free(w->path);
         free(w);
         return WDRT_IO;
@@ -90,7 +138,8 @@ wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes)
     return WDRT_OK;
 }
 
-wdrt_result wdrt_wav_close(wdrt_wav_out *w)
+/* Closes w's file and puts it in place (keep), or removes it. */
+static wdrt_result wav_end(wdrt_wav_out *w, int keep)
 {
     if (!w)
         return WDRT_INVALID_ARGS;
@@ -98,11 +147,20 @@ wdrt_result wdrt_wav_close(wdrt_wav_out *w)
     if (sf_close(w->f) != 0) {
         fprintf(stderr, "wdrt: %s: %s\n", w->path, sf_strerror(NULL));
         res = WDRT_IO;
+        keep = 0;
+    }
+    if (wdrt_temp_settle(w->tmp, w->path, keep) != 0 && keep) {
+        fprintf(stderr, "wdrt: %s: %s\n", w->path, strerror(errno));
+        res = WDRT_IO;
     }
     free(w->path);
     free(w);
     return res;
 }
+
+wdrt_result wdrt_wav_close(wdrt_wav_out *w) { return wav_end(w, 1); }
+
+wdrt_result wdrt_wav_abort(wdrt_wav_out *w) { return w ? (wav_end(w, 0), WDRT_OK) : WDRT_INVALID_ARGS; }
 
 wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
                            const double *frames, long nframes)

@@ -569,9 +569,12 @@ wdrt_result wdrt_wav_write(const char *path, int nch, double fs,
                            const double *frames, long nframes);
 
 /* The same written as it comes: open, append runs of interleaved frames,
- * close (which completes the header; the file is whole only then).  A
- * WAV's sizes are 32-bit: its samples (4 bytes each) may take at most
- * WDRT_WAV_MAX_BYTES, and an append past it fails. */
+ * close (which completes the header; the file is whole only then), or
+ * abort.  The frames go to a file beside path (wdrt_temp_beside) that
+ * close puts in path's place, so until then, and after an abort or a
+ * failure, a file at path is as it was.  A WAV's sizes are 32-bit: its
+ * samples (4 bytes each) may take at most WDRT_WAV_MAX_BYTES, and an
+ * append past it fails. */
 #define WDRT_WAV_MAX_BYTES (0xFFFFFFFFull - 4096)
 /* True if nframes of nch channels fit in a WAV file; the longest one of
  * nch channels at fs holds, in whole seconds. */
@@ -581,6 +584,17 @@ typedef struct wdrt_wav_out wdrt_wav_out;
 wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **out);
 wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes);
 wdrt_result wdrt_wav_close(wdrt_wav_out *w);
+wdrt_result wdrt_wav_abort(wdrt_wav_out *w);
+
+/* A new empty file beside path (path.XXXXXX, with the permissions path
+ * would be made with), malloc'ed, to write and then rename into place;
+ * NULL where path names a device or a FIFO, or none can be made: then
+ * path is written itself.  wdrt_temp_settle renames tmp to path (keep)
+ * or removes it (removing path itself, if it was written in place and
+ * is a regular file), frees tmp, and returns 0, or -1 (errno says why)
+ * if the file is not in place. */
+char *wdrt_temp_beside(const char *path);
+int wdrt_temp_settle(char *tmp, const char *path, int keep);
 
 /* Reads a WAV (any libsndfile format) as interleaved doubles; *frames is
  * malloc'ed and freed by the caller. */

@@ -382,16 +382,27 @@ static char *default_out(const char *scene) {
 /* Where a render's frames go: the file, and their peak for the summary. */
 typedef struct sink {
     wdrt_wav_out *w;
-    double peak;
+    double peak, rate;
     int failed;
+    long frames;     /* written so far */
+    long bad;        /* the first frame that is not finite, or -1 */
+    int badch;       /* its channel */
 } sink;
 
+/* Writes a run of frames; a sample that is not finite stops the render. */
 static int to_file(const double *frames, long n, int nch, void *user) {
     sink *k = user;
-    for (long i = 0; i < n * nch; i++)
+    for (long i = 0; i < n * nch; i++) {
+        if (!isfinite(frames[i])) {
+            k->bad = k->frames + i / nch;
+            k->badch = (int)(i % nch);
+            return 1;
+        }
         k->peak = fabs(frames[i]) > k->peak ? fabs(frames[i]) : k->peak;
+    }
     if (wdrt_wav_append(k->w, frames, n) != WDRT_OK)
         k->failed = 1;
+    k->frames += n;
     return k->failed;
 }
 
@@ -408,23 +419,32 @@ static int sink_open(sink *k, const char *path, double secs, int nch, double rat
         fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
         return EXIT_USAGE;
     }
+    k->rate = rate;
+    k->bad = -1;
     return 0;
 }
 
-/* Closes k's file.  If the render failed (`why` says how, unless writing
- * failed first) or the writing did, no half-written file is left behind.
- * 0, or the exit status. */
+/* Closes k's file, which then takes path's place.  If the render failed
+ * (`why` says how, unless writing failed first or a sample was not
+ * finite) or the writing did, nothing is written: a file at path is left
+ * as it was.  0, or the exit status. */
 static int sink_close(sink *k, const char *path, int rendered, const char *why) {
-    if (k->w && wdrt_wav_close(k->w) != WDRT_OK)
-        k->failed = 1;
+    if (rendered && !k->failed && k->bad < 0) {
+        if (wdrt_wav_close(k->w) != WDRT_OK)
+            k->failed = 1;
+    } else if (k->w) {
+        wdrt_wav_abort(k->w);
+    }
     k->w = NULL;
-    if (rendered && !k->failed)
+    if (rendered && !k->failed && k->bad < 0)
         return 0;
     if (k->failed)
         fprintf(stderr, "wdrt: error: cannot write '%s'\n", path);
+    else if (k->bad >= 0)
+        fprintf(stderr, "wdrt: error: the output went non-finite at %.6g s (frame %ld, channel %d): nothing written\n",
+                (double)k->bad / k->rate, k->bad, k->badch + 1);
     else
         fputs(why, stderr);
-    remove(path);
     return k->failed ? EXIT_USAGE : EXIT_TOOL;
 }
 

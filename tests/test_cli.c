@@ -124,6 +124,44 @@ static void test_wav_input_and_rate(void **s) {
                          "2>/dev/null", dir, dir, dir), 2);
 }
 
+/* The WAV writer writes beside its file and puts it in place on close:
+ * until then, and after an abort, a file of that name is as it was, and
+ * no temporary is left; a device is written as it is. */
+static void test_wav_replaced_whole(void **s) {
+    (void)s;
+    double a[100], b[200];
+    for (int i = 0; i < 200; i++)
+        b[i] = i < 100 ? (a[i] = 0.25 * sin(0.1 * i)) : 0.5;
+    const char *path = format("%s/whole.wav", dir);
+    assert_int_equal(wdrt_wav_write(path, 1, 8000, a, 100), WDRT_OK);
+    size_t n0;
+    char *before = read_file(path, &n0);
+    wdrt_wav_out *w;
+    assert_int_equal(wdrt_wav_open(path, 2, 8000, &w), WDRT_OK);
+    assert_int_equal(wdrt_wav_append(w, b, 100), WDRT_OK);
+    size_t n1;
+    assert_memory_equal(read_file(path, &n1), before, n0); /* still the old one while written */
+    assert_int_equal(n1, n0);
+    assert_int_equal(wdrt_wav_abort(w), WDRT_OK);
+    assert_memory_equal(read_file(path, &n1), before, n0);
+    assert_int_equal(n1, n0);
+    assert_int_equal(run("ls %s | grep -q 'whole\\.wav\\.'", dir), 1);
+    assert_int_equal(wdrt_wav_open(path, 2, 8000, &w), WDRT_OK);
+    assert_int_equal(wdrt_wav_append(w, b, 100), WDRT_OK);
+    assert_int_equal(wdrt_wav_close(w), WDRT_OK);
+    int nch;
+    double fs, *y;
+    long nf;
+    assert_int_equal(wdrt_wav_read(path, &nch, &fs, &y, &nf), WDRT_OK);
+    assert_int_equal(nch, 2);
+    assert_int_equal(nf, 100);
+    for (int i = 0; i < 200; i++)
+        assert_true(y[i] == (double)(float)b[i]);
+    free(y);
+    assert_int_equal(run("ls %s | grep -q 'whole\\.wav\\.'", dir), 1);
+    assert_int_equal(wdrt_wav_write("/dev/null", 1, 8000, a, 100), WDRT_OK);
+}
+
 /* Events: a param set mid-render takes effect at its frame, as it does
  * when the host sets it on the voice directly. */
 static void test_events(void **s) {
@@ -229,6 +267,7 @@ static void test_exit_status(void **s) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_render_csv_wav), cmocka_unit_test(test_wav_input_and_rate),
+        cmocka_unit_test(test_wav_replaced_whole),
         cmocka_unit_test(test_events),         cmocka_unit_test(test_strike_event),
         cmocka_unit_test(test_dot),            cmocka_unit_test(test_exit_status),
     };
