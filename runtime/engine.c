@@ -1693,19 +1693,38 @@ static void slot_pos(const wdrt_engine *e, const slot *q, double te, double p[3]
 
 /* The retarded delay tau (s) at frame t for a listener at L: what is heard
  * now left the source where it was tau ago, c tau = |p(t - tau) - L|.
- * Newton's method from the last tau, which is close. */
+ * Newton's method from the last tau, which is close: at most three steps.
+ * f(tau) = c tau - |p(t - tau) - L| is -|p(t) - L| <= 0 at 0 and grows
+ * without bound, so a root lies between the last tau where f < 0 and the
+ * first where f > 0; a step that leaves that bracket, or a slope that is
+ * not positive (the source comes at the listener as fast as sound or
+ * faster, which a jump of its position between blocks also gives), is
+ * replaced by doubling tau until f > 0, then by halving the bracket: the
+ * solve stays finite and bounded for any path. */
 static double retarded(const wdrt_engine *e, const slot *q, double t, const double *L, double tau, double p[3]) {
-    double vel[3];
-    for (int it = 0; it < 3; it++) {
+    double vel[3], lo = 0, hi = HUGE_VAL;
+    for (int it = 0, newton = 0; it < 64; it++) {
         slot_pos(e, q, t - tau * e->fs, p, vel);
         double dx[3] = {p[0] - L[0], p[1] - L[1], p[2] - L[2]};
         double d = sqrt(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2]);
         double f = e->sp.c * tau - d;
         double fp = e->sp.c + (d > 0 ? (dx[0] * vel[0] + dx[1] * vel[1] + dx[2] * vel[2]) / d : 0);
-        double step = f / fp;
-        tau -= step;
-        if (fabs(step) * e->fs < 1e-9)
+        if (f == 0)
             break;
+        if (f < 0)
+            lo = tau;
+        else
+            hi = tau;
+        double step = f / fp, next = tau - step;
+        if (fp > 0 && next >= lo && next <= hi) {
+            tau = next;
+            if (fabs(step) * e->fs < 1e-9 || ++newton == 3)
+                break;
+        } else {
+            tau = hi == HUGE_VAL ? 2 * tau + 1 / e->fs : 0.5 * (lo + hi);
+            if (hi - lo < 1e-9 / e->fs)
+                break;
+        }
     }
     return tau > 2 / e->fs ? tau : 2 / e->fs;
 }

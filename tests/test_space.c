@@ -211,6 +211,62 @@ static void test_doppler(void **s) {
     free(in);
 }
 
+/* A source that flies past faster than sound (twice its speed, or by a
+ * jump of its position between two blocks) has no single retarded time:
+ * what is heard stays finite and no louder than the source, and the
+ * source is heard once it is slower again. */
+static void test_supersonic(void **s) {
+    (void)s;
+    const long n = (long)(1 * FS);
+    double *in = sine(440, n);
+    double *y0 = direct(in, n), peak0 = 0;
+    for (long i = 0; i < n; i++)
+        peak0 = fmax(peak0, fabs(y0[i]));
+    scene sc = base(in, n);
+    sc.src[0] = -300;
+    sc.src[1] = 2;
+    sc.vel[0] = 2 * 343; /* through x = 0 at 0.44 s */
+    double *y = render(&sc);
+    double peak = 0;
+    for (long i = 0; i < n; i++) {
+        if (!isfinite(y[i]))
+            fail_msg("sample %ld of a source at twice the speed of sound is %g", i, y[i]);
+        peak = fmax(peak, fabs(y[i]));
+    }
+    assert_true(peak <= peak0 * (1 + 1e-9));
+    free(y);
+    /* jumps: 40 m towards the listener and back, every tenth block */
+    wdrt_pool_config pc = wdrt_pool_config_init(g_msd.cls, 1);
+    pc.owned = 1, pc.cost_ns = 1, pc.placed = 1, pc.hold = 1000;
+    pc.pos[1] = 50;
+    wdrt_engine_config ec = wdrt_engine_config_init(FS, 1, 1, &pc);
+    ec.space = sc.sp;
+    wdrt_engine *e;
+    assert_int_equal(wdrt_engine_init(&ec, NULL, &e), WDRT_OK);
+    wdrt_voice v = wdrt_engine_voice(e, 0, 0);
+    y = calloc((size_t)n, sizeof(double));
+    for (long pos = 0, b = 0; pos < n; pos += 64, b++) {
+        if (b % 10 == 0) {
+            double p[3] = {0, b % 20 ? 10 : 50, 0};
+            assert_int_equal(wdrt_engine_move(e, (uint64_t)pos, v, p), WDRT_OK);
+        }
+        assert_int_equal(wdrt_engine_bind_input(e, v, 0, in + pos), WDRT_OK);
+        wdrt_engine_process(e, y + pos, (uint32_t)(n - pos < 64 ? n - pos : 64));
+    }
+    wdrt_engine_uninit(e, NULL);
+    double late = 0;
+    for (long i = 0; i < n; i++) {
+        if (!isfinite(y[i]))
+            fail_msg("sample %ld of a source that jumps 40 m is %g", i, y[i]);
+        late = i > n / 2 ? fmax(late, fabs(y[i])) : late;
+    }
+    assert_true(late > 0.1 * peak0);
+    print_message("supersonic: peak %.3g against the source's %.3g; jumping: %.3g\n", peak, peak0, late);
+    free(y);
+    free(y0);
+    free(in);
+}
+
 /* Each distance model against its formula, clamped at ref and max. */
 /* The amplitude at f of what arrives over [a, b) against the voice's own
  * over the same stretch of its time (the delay taken off), so that both
@@ -552,7 +608,7 @@ static void test_far_goes_virtual(void **s) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_arrival), cmocka_unit_test(test_doppler), cmocka_unit_test(test_distance_models),
+        cmocka_unit_test(test_arrival), cmocka_unit_test(test_doppler), cmocka_unit_test(test_supersonic), cmocka_unit_test(test_distance_models),
         cmocka_unit_test(test_air),     cmocka_unit_test(test_pan),     cmocka_unit_test(test_wall),
         cmocka_unit_test(test_lagrange),  cmocka_unit_test(test_obstacles), cmocka_unit_test(test_binaural),
         cmocka_unit_test(test_far_goes_virtual),
