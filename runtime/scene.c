@@ -122,6 +122,9 @@ struct wdrt_scene {
     wdrt_room *rooms;
     int nrooms;
     int binaural;        /* (output binaural) */
+    const sx *binaural_at; /* its mode, or its file: where an HRTF that cannot be used is reported */
+    wdrt_hrtf *ears;     /* its HRTF, read at ears_fs (the scene's rate) */
+    double ears_fs;
     char *sofa;          /* its HRTF file, or NULL: the default */
     char *err;           /* where readers write their error */
     size_t errlen;
@@ -369,7 +372,25 @@ static int f_output(wdrt_scene *S, const sx *f) {
         if (e)
             return ERR(file, "cannot read the HRTF file '%s': %s", S->sofa, sx_file_strerror(e));
     }
+    S->binaural_at = S->binaural ? (f->len > 2 ? m->next : m) : NULL;
     return 0;
+}
+
+/* Binaural output: the HRTF, read once the scene's rate is known, so that
+ * a file that is not one is an error at its place and not when the scene
+ * renders (which takes it, at that rate). */
+static int load_ears(wdrt_scene *S) {
+    char err[512] = "";
+    wdrt_hrtf_close(S->ears);
+    if ((S->ears = wdrt_hrtf_open(S->sofa, S->rate, err, sizeof err))) {
+        S->ears_fs = S->rate;
+        return 0;
+    }
+    const char *cut = strstr(err, ": error: "), *why = cut ? cut + 9 : err; /* "PATH: error: why" */
+    int np = cut ? (int)(cut - err) : 0, n = (int)strcspn(why, "\n");
+    return S->sofa ? ERR(S->binaural_at, "cannot use the HRTF file '%s': %.*s", S->sofa, n, why)
+                   : ERR(S->binaural_at, "binaural output needs an HRTF, and the default one, '%.*s', cannot be "
+                                         "used: %.*s", np, err, n, why);
 }
 
 /* budget = '(' 'budget' CPU ')'   the share of one core voices may use */
@@ -1704,7 +1725,7 @@ wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err, siz
     for (int i = 0; i < S->nvoices; i++)
         if (!S->voices[i].tree)
             add_nl(S, i, -1);
-    if (check_motions(S)) {
+    if (check_motions(S) || (S->binaural && load_ears(S))) {
         wdrt_scene_free(S);
         return WDRT_SYNTAX;
     }
@@ -1717,6 +1738,7 @@ wdrt_result wdrt_scene_load(const char *path, wdrt_scene **scene, char *err, siz
 void wdrt_scene_free(wdrt_scene *S) {
     if (!S)
         return;
+    wdrt_hrtf_close(S->ears);
     for (int i = 0; i < S->nvoices; i++) {
         free(S->voices[i].netlist);
         free(S->voices[i].params);
@@ -2572,6 +2594,7 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     wdrt_result res = WDRT_INVALID_ARGS;
     double *out = NULL;
     wdrt_hrtf *ears = NULL;
+    kept keep = {NULL, 0, 0, 0}; /* the frames, kept when the caller gives no sink; freed at done */
     if (render_init(&R, S, o, pc, pv) != 0)
         goto done;
     complex_pools(S, pc + S->nvoices, srcs);
@@ -2596,14 +2619,14 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     ec.sleep = S->sleep && !(o && o->nosleep);
     ec.budget_ns = o && o->budget_ns > 0 ? o->budget_ns : S->budget_cpu * 1e9 / R.fs;
     space_config(S, &ec.space);
-    if (S->binaural && ec.space.sources > 0) {
+    if (S->binaural && ec.space.sources > 0) { /* the scene's HRTF, or at another rate its own */
         char err[512];
-        if (!(ears = wdrt_hrtf_open(S->sofa, R.fs, err, sizeof err))) {
+        if (R.fs != S->ears_fs && !(ears = wdrt_hrtf_open(S->sofa, R.fs, err, sizeof err))) {
             fputs(err, stderr);
             res = WDRT_FORMAT;
             goto done;
         }
-        ec.space.hrtf = ears;
+        ec.space.hrtf = ears ? ears : S->ears;
     }
     if ((res = wdrt_engine_init(&ec, NULL, &R.e)) != WDRT_OK)
         goto done;
@@ -2627,7 +2650,7 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     uint64_t cap = secs > 0 ? n : last + frame_of(LAST_RING_S, R.fs), t = 0;
     const uint64_t chunk = 4096;
     /* every run goes to a sink: the caller's, or one that keeps the frames */
-    kept keep = {NULL, 0, 0, cap};
+    keep.cap = cap;
     int (*sink)(const double *, long, int, void *) = o && o->sink ? o->sink : keep_frames;
     void *user = o && o->sink ? o->sink_user : &keep;
     if (!(out = malloc(sizeof(double) * (size_t)chunk * (size_t)S->channels))) {

@@ -404,6 +404,57 @@ static void test_load_errors(void **s) {
         assert_non_null(strchr(err, '^'));
         free((void *)path);
     }
+    /* a file that is not an HRTF is an error at its name when the scene is
+     * read (rendering it freed a pointer never allocated) */
+    const char *path = strdup(write_file("e.wds", "(output binaural \"e.wds\") (rate 96k)\n"));
+    char err[2048] = "";
+    wdrt_scene *sc = NULL;
+    assert_int_equal(wdrt_scene_load(path, &sc, err, sizeof err), WDRT_SYNTAX);
+    check_error(path, err, "1:18: error: cannot use the HRTF file '");
+    assert_non_null(strstr(err, "e.wds': not a SOFA file\n"));
+    free((void *)path);
+}
+
+/* A binaural scene renders through the HRTF it read when it was loaded,
+ * at its own rate, and through one read at the rate asked for otherwise:
+ * both ears hear the strike, in the same place in time. */
+static void test_binaural_rates(void **s) {
+    (void)s;
+    const char *path = strdup(write_file("bin.wds", "(output binaural)\n(voice m \"x.wdn\" (pos 1 2 1.7))\n"
+                                                    "(at 0.001 (strike m (v m 1) (x m -0.2m)))\n"));
+    char err[2048] = "";
+    wdrt_scene *sc = NULL;
+    assert_int_equal(wdrt_scene_load(path, &sc, err, sizeof err), WDRT_OK);
+    assert_int_equal(wdrt_scene_bind(sc, 0, g_mallet.cls, err, sizeof err), WDRT_OK);
+    double first[2] = {0, 0};
+    for (int k = 0; k < 2; k++) {
+        wdrt_render_opts o = {0};
+        o.seconds = 0.05;
+        o.rate = k ? 96000 : 0;
+        double *y, rate;
+        long nf;
+        int nch;
+        assert_int_equal(wdrt_scene_render(sc, &o, &y, &nf, &nch, &rate, NULL), WDRT_OK);
+        assert_int_equal(nch, 2);
+        assert_true(rate == (k ? 96000 : 48000));
+        double e[2] = {0, 0};
+        long onset = -1;
+        for (long i = 0; i < nf * 2; i++) {
+            assert_true(isfinite(y[i]));
+            e[i % 2] += y[i] * y[i];
+            if (onset < 0 && fabs(y[i]) > 1e-6)
+                onset = i / 2;
+        }
+        assert_true(e[0] > 0 && e[1] > 0 && e[1] > e[0]); /* the source is to the right */
+        first[k] = (double)onset / rate;
+        free(y);
+    }
+    /* the sound leaves at 1 ms and travels 2.2 m at 343 m/s: 7.5 ms; the
+     * ears' delays differ by under a millisecond */
+    assert_true(fabs(first[0] - first[1]) < 1e-3);
+    assert_true(first[0] > 0.007 && first[0] < 0.010);
+    wdrt_scene_free(sc);
+    free((void *)path);
 }
 
 static const bad g_bind_errors[] = {
@@ -577,7 +628,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache),   cmocka_unit_test(test_rings_down),
         cmocka_unit_test(test_gain_curve),  cmocka_unit_test(test_load_errors), cmocka_unit_test(test_bind_errors),
-        cmocka_unit_test(test_bind_warnings),
+        cmocka_unit_test(test_bind_warnings), cmocka_unit_test(test_binaural_rates),
         cmocka_unit_test(test_fuzz),        cmocka_unit_test(test_placed_complex),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
