@@ -207,9 +207,14 @@ static void vreport(SrcPos pos, const char *kind, const char *fmt, va_list ap) {
     const char *e = p;
     while (*e && *e != '\n' && *e != '\r')
         e++;
-    fprintf(out, "  %.*s\n  ", (int)(e - p), p);
-    for (int i = 1; i < pos.col && p + i - 1 < e; i++)
-        fputc(p[i - 1] == '\t' ? '\t' : ' ', out);
+    /* a long line is shown SHOW_LINE bytes about the column, "..." where cut */
+    enum { SHOW_LINE = 100, SHOW_BEFORE = 60 };
+    const char *c = p + pos.col - 1 < e ? p + pos.col - 1 : e;
+    const char *a = e - p > SHOW_LINE && c - p > SHOW_BEFORE ? c - SHOW_BEFORE : p;
+    const char *b = e - a > SHOW_LINE ? a + SHOW_LINE : e;
+    fprintf(out, "  %s%.*s%s\n  %s", a > p ? "..." : "", (int)(b - a), a, b < e ? "..." : "", a > p ? "   " : "");
+    for (const char *q = a; q < c; q++)
+        fputc(*q == '\t' ? '\t' : ' ', out);
     fputs("^\n", out);
     for (SrcFile *f = pos.file; f->includer; f = f->includer)
         fprintf(out, "%s:%d:%d: note: included from here\n", f->includer->path,

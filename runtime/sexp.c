@@ -220,9 +220,14 @@ static void vreport(const sx_doc *d, int line, int col, char *err, size_t errlen
     out_vf(&o, fmt, ap);
     const char *s, *e;
     line_bounds(d, line, &s, &e);
-    out_f(&o, "\n  %.*s\n  ", (int)(e - s), s);
-    for (int i = 1; i < col && s + i - 1 < e; i++)
-        out_f(&o, "%c", s[i - 1] == '\t' ? '\t' : ' ');
+    /* a long line is shown SHOW_LINE bytes about the column, "..." where cut */
+    enum { SHOW_LINE = 100, SHOW_BEFORE = 60 };
+    const char *c = col >= 1 && col - 1 < e - s ? s + col - 1 : e;
+    const char *a = e - s > SHOW_LINE && c - s > SHOW_BEFORE ? c - SHOW_BEFORE : s;
+    const char *b = e - a > SHOW_LINE ? a + SHOW_LINE : e;
+    out_f(&o, "\n  %s%.*s%s\n  %s", a > s ? "..." : "", (int)(b - a), a, b < e ? "..." : "", a > s ? "   " : "");
+    for (const char *q = a; q < c; q++)
+        out_f(&o, "%c", *q == '\t' ? '\t' : ' ');
     out_f(&o, "^\n");
 }
 

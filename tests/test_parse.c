@@ -883,6 +883,25 @@ static void test_include_cycles(void **state) {
     free(out);
 }
 
+/* A long line is shown 100 bytes about the column, "..." where it is cut,
+ * with the caret under the column. */
+static void test_long_line(void **state) {
+    (void)state;
+    char text[400];
+    int n = snprintf(text, sizeof text, ".input in\n" SRC "R1 a 0 {");
+    for (int i = 0; i < 40; i++)
+        n += snprintf(text + n, sizeof text - (size_t)n, "1 + ");
+    snprintf(text + n, sizeof text - (size_t)n, "q + 2 + 3 + 4 + 5 + 6 + 7 + 8 + 9 + 10 + 11 + 12 + 13 + 14 + 15}\n");
+    char *out = load_fails(text);
+    char want[512];
+    snprintf(want, sizeof want,
+             "t.wdn:3:169: error: unknown param 'q'\n"
+             "  ...%.60sq + 2 + 3 + 4 + 5 + 6 + 7 + 8 + 9 + 10 +...\n"
+             "  %*s^\n", "1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + 1 + ", 63, "");
+    assert_string_equal(out, want);
+    free(out);
+}
+
 /* ---- good inputs ---- */
 
 static void test_spice_numbers(void **state) {
@@ -1109,7 +1128,7 @@ int main(void) {
         cmocka_unit_test(test_deck),
         cmocka_unit_test(test_deck_sources),
         cmocka_unit_test(test_include_cycles),
-        cmocka_unit_test(test_spice_numbers),
+        cmocka_unit_test(test_spice_numbers), cmocka_unit_test(test_long_line),
         cmocka_unit_test(test_comments_and_continuations),
         cmocka_unit_test(test_params),
         cmocka_unit_test(test_blocks),

@@ -434,12 +434,24 @@ static void error_nesting(void **state)
     snprintf(head, sizeof head, PATH ":1:%d: error: lists nested more than %d deep\n  ",
              SX_MAX_DEPTH + 1, SX_MAX_DEPTH);
     assert_true(!strncmp(err, head, strlen(head)));
-    /* the source line is the whole run; the caret stands under '(' 257 */
-    const char *caret = err + strlen(head) + N + 1;
-    assert_int_equal(caret[-1], '\n');
-    assert_int_equal(strspn(caret, " "), 2 + SX_MAX_DEPTH);
-    assert_string_equal(caret + 2 + SX_MAX_DEPTH, "^\n");
+    /* of a long line, 100 bytes are shown, 60 of them before the column
+     * ('(' 257), "..." where it is cut; the caret stands under the column */
+    const char *src = err + strlen(head);
+    assert_true(!strncmp(src, "...", 3));
+    assert_int_equal(strspn(src + 3, "("), 100);
+    assert_true(!strncmp(src + 103, "...\n", 4));
+    const char *caret = src + 107;
+    assert_int_equal(strspn(caret, " "), 2 + 3 + 60);
+    assert_string_equal(caret + 2 + 3 + 60, "^\n");
     assert_int_equal(live_blocks, 0);
+    /* a long line cut only after the column, and one short enough to show whole */
+    char line[300];
+    memset(line, 'a', sizeof line);
+    memcpy(line, "(x \"", 4);
+    line[sizeof line - 1] = '\n';
+    assert_null(sx_parse(PATH, line, sizeof line, err, sizeof err));
+    snprintf(head, sizeof head, PATH ":1:4: error: unterminated string\n  (x \"%.96s...\n     ^\n", line + 4);
+    assert_string_equal(err, head);
 }
 
 static void error_strings(void **state)
