@@ -961,14 +961,17 @@ static int select_parent(evo *e) {
         }
         return best;
     }
-    double sum = 0;
+    /* ratings over the largest, so that their sum stays finite (1e308s) */
+    double top = 0, sum = 0;
     for (int i = 0; i < e->npop; i++)
-        sum += e->pop[i].score;
-    if (!(sum > 0))
+        top = fmax(top, e->pop[i].score);
+    if (!(top > 0))
         return below(&e->rng, e->npop);
+    for (int i = 0; i < e->npop; i++)
+        sum += e->pop[i].score / top;
     double u = tt_evo_rng_uniform(&e->rng) * sum;
     for (int i = 0; i < e->npop; i++)
-        if ((u -= e->pop[i].score) < 0)
+        if ((u -= e->pop[i].score / top) < 0)
             return i;
     return e->npop - 1;
 }

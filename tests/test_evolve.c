@@ -466,6 +466,30 @@ static void test_finds_pitch(void **s) {
 
 /* ---- rating mode ---- */
 
+/* Parents are drawn in proportion to the ratings, however large: ratings
+ * of 1e308 (whose sum overflows) breed what ratings of 1 breed. */
+static void test_huge_ratings(void **s) {
+    (void)s;
+    char seed[600], r1[600], rh[600];
+    snprintf(seed, sizeof seed, "%s", tl_write_file(g_dir, "hum.tt", "(* 0.3 (saw (* 220 t)))\n"));
+    snprintf(r1, sizeof r1, "%s", tl_write_file(g_dir, "r1.txt", "1 1 1 1 1 1\n1 1 1 1 1 1\n"));
+    snprintf(rh, sizeof rh, "%s", tl_write_file(g_dir, "rh.txt", "1e308 1e308 1e308 1e308 1e308 1e308\n"
+                                                                 "1e308 1e308 1e308 1e308 1e308 1e308\n"));
+    for (int k = 0; k < 2; k++) {
+        outcome o = evolve(seed, "--ratings", k ? rh : r1, "--population", "6", "--generations", "2", "--seconds",
+                           "0.05", "--rate", "8000", "--seed", "5", "-o", in_dir(2, "huge%d", k), "--quiet", NULL);
+        if (o.status)
+            fail_msg("status %d: %s", o.status, o.err);
+        outcome_free(&o);
+    }
+    for (int i = 0; i < 6; i++) {
+        char *a = slurp(in_dir(3, "huge0/gen-001/ind-%02d.tt", i)), *b = slurp(in_dir(4, "huge1/gen-001/ind-%02d.tt", i));
+        assert_string_equal(a, b);
+        free(a);
+        free(b);
+    }
+}
+
 static void test_ratings(void **s) {
     (void)s;
     char seed[600], ratings[600];
@@ -649,7 +673,7 @@ int main(void) {
         cmocka_unit_test(test_rng),           cmocka_unit_test(test_fft),
         cmocka_unit_test(test_distance_slope), cmocka_unit_test(test_mutations),
         cmocka_unit_test(test_mutation_limits), cmocka_unit_test(test_repeatable),
-        cmocka_unit_test(test_finds_pitch),   cmocka_unit_test(test_ratings),
+        cmocka_unit_test(test_finds_pitch),   cmocka_unit_test(test_ratings), cmocka_unit_test(test_huge_ratings),
         cmocka_unit_test(test_sample_paths),
         cmocka_unit_test(test_command_line),
     };
