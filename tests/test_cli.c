@@ -160,6 +160,14 @@ static void test_wav_replaced_whole(void **s) {
     free(y);
     assert_int_equal(run("ls %s | grep -q 'whole\\.wav\\.'", dir), 1);
     assert_int_equal(wdrt_wav_write("/dev/null", 1, 8000, a, 100), WDRT_OK);
+    /* a sample past what a 32-bit float holds is refused, not written as infinite */
+    double big[2] = {0.5, 1e39};
+    assert_int_equal(wdrt_wav_open(path, 1, 8000, &w), WDRT_OK);
+    assert_int_equal(wdrt_wav_append(w, big, 2), WDRT_IO);
+    assert_int_equal(wdrt_wav_abort(w), WDRT_OK);
+    assert_int_equal(wdrt_wav_read(path, &nch, &fs, &y, &nf), WDRT_OK); /* the last whole file */
+    assert_int_equal(nch, 2);
+    free(y);
 }
 
 /* Events: a param set mid-render takes effect at its frame, as it does
