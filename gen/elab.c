@@ -1538,23 +1538,27 @@ static void apply_ics(Elab *E) {
 static void check_nl(const Circuit *c, const Elem *e, const double *p) {
     (void)c;
     const NlSpec *nl = e->nl;
-    typedef struct { Expr *x; const char *name; double lo; bool strict; } Bound;
+    typedef struct { Expr *x; const char *name; double lo; bool strict; double hi; } Bound;
     Bound k[4];
     int n = 0;
+    /* a diode's n Vt sets the scale of its solvers' errors: past 1000 x 1 V
+     * (n of a thousand diodes in series, Vt of 11600 K) a voltage of one
+     * is lost in them */
     if (nl->kind == NL_DIODE) {
-        k[n++] = (Bound){nl->Is, "Is", 0, true};
-        k[n++] = (Bound){nl->n, "n", 0, true};
-        k[n++] = (Bound){nl->Vt, "Vt", 0, true};
+        k[n++] = (Bound){nl->Is, "Is", 0, true, INFINITY};
+        k[n++] = (Bound){nl->n, "n", 0, true, 1000};
+        k[n++] = (Bound){nl->Vt, "Vt", 0, true, 1};
     } else if (nl->kind == NL_CONTACT) {
-        k[n++] = (Bound){nl->k, "k", 0, true};
-        k[n++] = (Bound){nl->alpha, "alpha", 1, false};
-        k[n++] = (Bound){nl->lambda, "lambda", 0, false};
+        k[n++] = (Bound){nl->k, "k", 0, true, INFINITY};
+        k[n++] = (Bound){nl->alpha, "alpha", 1, false, INFINITY};
+        k[n++] = (Bound){nl->lambda, "lambda", 0, false, INFINITY};
     }
     for (int i = 0; i < n; i++) {
         double v = expr_eval(k[i].x, p);
-        if (!isfinite(v) || (k[i].strict ? !(v > k[i].lo) : !(v >= k[i].lo)))
-            error_at(e->pos, "%s '%s' has %s = %g; it must be %s %g", block_desc[e->user_kind].desc, e->name,
-                     k[i].name, v, k[i].strict ? "greater than" : "at least", k[i].lo);
+        if (!isfinite(v) || (k[i].strict ? !(v > k[i].lo) : !(v >= k[i].lo)) || v > k[i].hi)
+            error_at(e->pos, "%s '%s' has %s = %g; it must be %s %g%s", block_desc[e->user_kind].desc, e->name,
+                     k[i].name, v, k[i].strict ? "greater than" : "at least", k[i].lo,
+                     isfinite(k[i].hi) ? format(" and at most %g", k[i].hi) : "");
     }
 }
 

@@ -84,6 +84,11 @@ static void test_solvers(void **s) {
            "not depend on params (use solver=fast, newton or omega)");
     expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D Is=0\n",
            "t.wdn:3:1: error: diode 'D1' has Is = 0; it must be greater than 0");
+    /* n Vt past 1000 V would lose a volt in the solvers' error (n = 1e32 rendered silence) */
+    expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D n=1e32\n",
+           "t.wdn:3:1: error: diode 'D1' has n = 1e+32; it must be greater than 0 and at most 1000");
+    expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D Vt=2\n",
+           "t.wdn:3:1: error: diode 'D1' has Vt = 2; it must be greater than 0 and at most 1");
     expect(".ic v(h)=1\nmass M h m=10m\ncontact H1 h 0 k=1e9 alpha=0.5\n",
            "t.wdn:3:9: error: contact 'H1' has alpha = 0.5; it must be at least 1");
     expect(".input in\nV1 a 0 in R=1k\nD1 a 0 dd\n.model dd D pair=2\n", "t.wdn:4:18: error: pair= takes 0 or 1");
