@@ -525,6 +525,9 @@ void circuit_dump(const Circuit *c, FILE *out);
  * short for their filters and taps outside their waveguide (unwinding
  * through diag). */
 void wg_choose(Circuit *c);
+/* An error if a waveguide's loop, at the default params, is too short for
+ * its filters at rate fs (a render's --rate). */
+void wg_check_rate(const Circuit *c, double fs);
 /* Doubles a voice's state keeps per waveguide: the spec of the design in
  * effect, and a design prepare made with its spec. */
 extern const int wg_nspec, wg_nrec;

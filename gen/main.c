@@ -840,8 +840,9 @@ static int emit(Wdf *w, const EmitOpts *eo, const char *lv2) {
     return r == 0 ? 0 : EXIT_TOOL;
 }
 
-/* wg_choose, netlist errors unwinding to here: false. */
-static bool choose_orders(Circuit *c) {
+/* wg_choose, and the loops at the rate fs a render asks for (0: none),
+ * netlist errors unwinding to here: false. */
+static bool choose_orders(Circuit *c, double fs) {
     jmp_buf jb;
     diag.jmp = &jb;
     if (setjmp(jb)) {
@@ -849,6 +850,8 @@ static bool choose_orders(Circuit *c) {
         return false;
     }
     wg_choose(c);
+    if (fs > 0 && fs != c->rate)
+        wg_check_rate(c, fs);
     diag.jmp = NULL;
     return true;
 }
@@ -856,7 +859,7 @@ static bool choose_orders(Circuit *c) {
 int main(int argc, char **argv) {
     Opts o = parse_args(argc, argv);
     Circuit *c = wdc_elaborate(o.file);
-    if (!c || !choose_orders(c))
+    if (!c || !choose_orders(c, o.render ? o.rate : 0))
         return EXIT_NETLIST;
     if (o.dump_elab)
         circuit_dump(c, stdout);

@@ -22,6 +22,23 @@ static wg_spec spec_of(const Waveguide *w, const double *p, double fs) {
                      .rad = eval_or(w->rad, p, 0), .nrad = w->nrad, .K = w->M, .nmin = w->nmin};
 }
 
+/* A loop too short for its filters at s->fs (set by `rate`): an error. */
+static void too_short(const Waveguide *w, const wg_spec *s, const char *rate) {
+    error_at(w->pos, "%s '%s' is too short for its filters at %g Hz: its loop holds %.2f samples and needs at "
+             "least %d (lower f0, or raise %s)", w->tube ? "tube" : "string", w->name, s->fs, wg_target(s, s->nu1),
+             s->nmin + 1, rate);
+}
+
+void wg_check_rate(const Circuit *c, double fs) {
+    double *p = circuit_defaults(c);
+    for (int i = 0; i < c->nwgs; i++) {
+        wg_loop l = {0};
+        wg_spec s = spec_of(&c->wgs[i], p, fs);
+        if (wg_design(&s, &l) < 0)
+            too_short(&c->wgs[i], &s, "--rate");
+    }
+}
+
 /* The lowest allpass order that brings partials 1..12 within half a
  * cent at the default params, at the netlist's rate and at 44.1 and
  * 96 kHz (or the best order up to 32; a voice at another rate may use a
@@ -38,9 +55,7 @@ void wg_choose(Circuit *c) {
         if (!(s.t60 >= 0) || !(s.t60hf >= 0) || !(s.fhf > 0))
             error_at(w->pos, "%s '%s': t60, t60hf and fhf must be positive", w->tube ? "tube" : "string", w->name);
         if (wg_design(&s, &l) < 0)
-            error_at(w->pos, "%s '%s' is too short for its filters at %g Hz: its loop holds %.2f samples and "
-                     "needs at least %d (lower f0, or raise .rate)", w->tube ? "tube" : "string", w->name,
-                     c->rate, wg_target(&s, s.nu1), s.nmin + 1);
+            too_short(w, &s, ".rate");
         /* the order must serve the usual rates too: a voice runs at the
          * host's rate, and uses a lower order where that suffices */
         if (!(s.B > 0))

@@ -87,6 +87,17 @@ static void test_allocation_failure(void **s) {
     assert_err_has("86400 s of 3 outputs at 48000 Hz is too long for a WAV file, which holds at most 4 GiB (7456 s)");
 }
 
+/* A string too short for its filters at the rate a render asks for is
+ * an error at the string, as at the netlist's own rate (at 2 kHz the
+ * treble strings of a piano, 2093 Hz, rendered detuned without a word). */
+static void test_rate_too_low_for_strings(void **s) {
+    (void)s;
+    assert_int_equal(wdc(format("netlists/piano_treble.wdn --render %s/x.wav --seconds 0.01 --rate 2000", dir)), 1);
+    assert_err_has("piano.wdn:7:9: error: string 'U1.S' is too short for its filters at 2000 Hz: its loop holds "
+                   "0.96 samples and needs at least 5 (lower f0, or raise --rate)");
+    assert_int_equal(wdc(format("netlists/piano_treble.wdn --render %s/x.wav --seconds 0.01 --rate 44100", dir)), 0);
+}
+
 /* A render that fails leaves a file of its name as it was (it writes
  * beside it and renames once whole): the WAV and CSV a good render wrote
  * survive one that overflows, and no temporary is left. */
@@ -288,7 +299,7 @@ static void test_render_keeps_outdir(void **s) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_seconds_limit),      cmocka_unit_test(test_allocation_failure),
-        cmocka_unit_test(test_failed_render_keeps_files),
+        cmocka_unit_test(test_failed_render_keeps_files), cmocka_unit_test(test_rate_too_low_for_strings),
         cmocka_unit_test(test_event_times),        cmocka_unit_test(test_input_specs),
         cmocka_unit_test(test_event_values),       cmocka_unit_test(test_nonfinite_output),
         cmocka_unit_test(test_event_diagnostics),  cmocka_unit_test(test_events_fail_fast), cmocka_unit_test(test_targets_that_set_nothing),
