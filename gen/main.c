@@ -627,8 +627,9 @@ static void sink_put(Sink *k, const double *frames, long m, int nch) {
     k->failed |= bad != NULL;
 }
 
-/* Closes the files; status is the render's: on failure (or a write that
- * failed) they are removed.  Returns the exit status. */
+/* Closes the files and puts them in place; status is the render's: on
+ * failure (or a write that failed) what was written goes, and files of
+ * their names are left as they were.  Returns the exit status. */
 static int sink_close(Sink *k, int status) {
     end_line(k);
     if (k->f && fclose(k->f) != 0 && !k->failed) {
@@ -683,9 +684,11 @@ static int render_run(const Opts *o, const Circuit *c, const wdv_class *cls, voi
             const Event *e = &rd->ev[ei];
             if (e->kind == 0)
                 cls->set_param(st, e->param, e->value);
-            else if (cls->set_ic(st, e->nic, e->ids, e->vals) != 0)
+            else if (cls->set_ic(st, e->nic, e->ids, e->vals) != 0) {
+                end_line(sk);
                 fprintf(stderr, "%s: warning: initial conditions at %.6g s cannot all hold\n", o->events,
                         (double)pos / fs);
+            }
         }
         long end = ei < rd->nev && rd->ev[ei].frame < n ? rd->ev[ei].frame : n;
         if (end - pos > BLOCK)
