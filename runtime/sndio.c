@@ -32,8 +32,8 @@ struct wdrt_wav_out {
 char *wdrt_temp_beside(const char *path)
 {
     struct stat sb;
-    if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
-        return NULL; /* a device or a FIFO is written as it is */
+    if (lstat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
+        return NULL; /* a device, a FIFO or a link is written as it is */
     size_t n = strlen(path);
     char *t = malloc(n + 8);
     if (!t)
@@ -57,7 +57,7 @@ int wdrt_temp_settle(char *tmp, const char *path, int keep)
     int r = 0;
     struct stat sb;
     if (!tmp) { /* written in place: a half-written regular file goes */
-        if (!keep && stat(path, &sb) == 0 && S_ISREG(sb.st_mode))
+        if (!keep && lstat(path, &sb) == 0 && S_ISREG(sb.st_mode))
             remove(path);
         return keep ? 0 : -1;
     }

@@ -588,7 +588,8 @@ wdrt_result wdrt_wav_abort(wdrt_wav_out *w);
 
 /* A new empty file beside path (path.XXXXXX, with the permissions path
  * would be made with), malloc'ed, to write and then rename into place;
- * NULL where path names a device or a FIFO, or none can be made: then
+ * NULL where path names a device, a FIFO or a symbolic link (whose
+ * target is written), or none can be made: then
  * path is written itself.  wdrt_temp_settle renames tmp to path (keep)
  * or removes it (removing path itself, if it was written in place and
  * is a regular file), frees tmp, and returns 0, or -1 (errno says why)
