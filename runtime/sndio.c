@@ -127,10 +127,10 @@ wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes)
         fprintf(stderr, "wdrt: %s: a WAV file holds at most 4 GiB of samples\n", w->path);
         return WDRT_IO;
     }
-    /* a 32-bit float holds magnitudes up to FLT_MAX: past it a sample would
-     * be written as infinite */
+    /* a 32-bit float holds magnitudes up to FLT_MAX: past it a finite
+     * sample would be written as infinite */
     for (size_t i = 0; i < (size_t)nframes * (size_t)w->nch; i++)
-        if (!(fabs(frames[i]) <= FLT_MAX)) {
+        if (isfinite(frames[i]) && fabs(frames[i]) > FLT_MAX) {
             fprintf(stderr, "wdrt: %s: a sample is %g, which a 32-bit float WAV file cannot hold (at most %g)\n",
                     w->path, frames[i], (double)FLT_MAX);
             return WDRT_IO;
