@@ -843,7 +843,8 @@ static int emit(Wdf *w, const EmitOpts *eo, const char *lv2) {
     return r == 0 ? 0 : EXIT_TOOL;
 }
 
-/* wg_choose, and the loops at the rate fs a render asks for (0: none),
+/* wg_choose, and the loops at the rate fs --rate asks for (0: none; a
+ * host such as wdrt checks a voice at its rate with --check --rate),
  * netlist errors unwinding to here: false. */
 static bool choose_orders(Circuit *c, double fs) {
     jmp_buf jb;
@@ -862,7 +863,7 @@ static bool choose_orders(Circuit *c, double fs) {
 int main(int argc, char **argv) {
     Opts o = parse_args(argc, argv);
     Circuit *c = wdc_elaborate(o.file);
-    if (!c || !choose_orders(c, o.render ? o.rate : 0))
+    if (!c || !choose_orders(c, o.rate))
         return EXIT_NETLIST;
     if (o.dump_elab)
         circuit_dump(c, stdout);

@@ -35,7 +35,7 @@ void wg_check_rate(const Circuit *c, double fs) {
         wg_loop l = {0};
         wg_spec s = spec_of(&c->wgs[i], p, fs);
         if (wg_design(&s, &l) < 0)
-            too_short(&c->wgs[i], &s, "--rate");
+            too_short(&c->wgs[i], &s, "the rate");
     }
 }
 

@@ -230,7 +230,31 @@ static const char *wdc_path(const char *argv0) {
 
 /* Builds (or finds in the cache) the voice of `netlist`.  Returns 0, or
  * the exit status after printing why. */
-static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *lib) {
+/* A voice runs at any rate, but a string's or tube's loop needs a rate
+ * high enough for its pitch: `wdc --check --rate` says so at the string,
+ * once for each rate a cached voice is used at (a file in its folder
+ * remembers it).  0, or the exit status, said. */
+static int check_rate(const char *dir, const char *netlist, const char *wdc, double rate) {
+    char mark[PATH_MAX + 128], r[64];
+    snprintf(r, sizeof r, "%.17g", rate);
+    snprintf(mark, sizeof mark, "%s/rate-%s.ok", dir, r);
+    if (access(mark, F_OK) == 0)
+        return 0;
+    char *argv[] = {(char *)wdc, (char *)netlist, "--check", "--rate", r, NULL};
+    int status = 0;
+    if (wdrt_spawn(argv, STDERR_FILENO, &status) != WDRT_OK || status != 0) {
+        if (status == 1)
+            return EXIT_INPUT; /* wdc said which loop is too short, and where */
+        fprintf(stderr, "wdrt: error: %s failed on '%s' (status %d)\n", wdc, netlist, status);
+        return EXIT_TOOL;
+    }
+    FILE *f = fopen(mark, "w"); /* a cache that cannot remember checks again next time */
+    if (f)
+        fclose(f);
+    return 0;
+}
+
+static int cached_voice(const char *netlist, const char *wdc, double rate, wdrt_voice_lib *lib) {
     const char *root = getenv("WDRT_CACHE");
     if (!root || !*root)
         root = "out/cache";
@@ -284,6 +308,9 @@ static int cached_voice(const char *netlist, const char *wdc, wdrt_voice_lib *li
         if (rename(tmp, dir) != 0) /* another render made it first: use theirs */
             remove_dir(tmp);
     }
+    int st = check_rate(dir, netlist, wdc, rate);
+    if (st)
+        return st;
     snprintf(so, sizeof so, "%s/%s.so", dir, name);
     if (wdrt_voice_open(so, name, lib) != WDRT_OK) {
         fprintf(stderr, "wdrt: error: cannot load the voice of '%s' from %s\n", netlist, so);
@@ -463,7 +490,7 @@ static int cmd_render(int argc, char **argv) {
     int nv = wdrt_scene_nvoices(s), status = 0;
     wdrt_voice_lib *libs = calloc((size_t)nv + 1, sizeof *libs);
     for (int i = 0; i < nv && !status; i++) {
-        if (!(status = cached_voice(wdrt_scene_voice_netlist(s, i), wdc, &libs[i]))) {
+        if (!(status = cached_voice(wdrt_scene_voice_netlist(s, i), wdc, wdrt_scene_rate(s, &o.ro), &libs[i]))) {
             if (wdrt_scene_bind(s, i, libs[i].cls, err, sizeof err) != WDRT_OK)
                 status = EXIT_INPUT;
             fputs(err, stderr); /* the error, or the warnings */
@@ -683,12 +710,12 @@ static char *tree_out(const char *file, int expr) {
 }
 
 /* Builds (through the cache) the voices the tree's voice nodes name. */
-static int tree_voices(tt_prog *P, const char *argv0, wdrt_voice_lib **libs) {
+static int tree_voices(tt_prog *P, const char *argv0, double rate, wdrt_voice_lib **libs) {
     int nv = tt_prog_nvoices(P), status = 0;
     *libs = calloc((size_t)nv + 1, sizeof **libs);
     char err[4096];
     for (int k = 0; k < nv && !status; k++)
-        if (!(status = cached_voice(tt_prog_voice_path(P, k), wdc_path(argv0), &(*libs)[k])) &&
+        if (!(status = cached_voice(tt_prog_voice_path(P, k), wdc_path(argv0), rate, &(*libs)[k])) &&
             tt_prog_bind_voice(P, k, (*libs)[k].cls, err, sizeof err)) {
             fputs(err, stderr);
             status = EXIT_INPUT;
@@ -774,7 +801,7 @@ static int cmd_tree(int argc, char **argv) {
     }
     wdrt_voice_lib *libs = NULL;
     if (!status)
-        status = tree_voices(P, argv[0], &libs);
+        status = tree_voices(P, argv[0], rate, &libs);
     if (!status && print) {
         tt_print_tree(stdout, t);
         printf("; %d nodes, depth %d, %d instructions\n", tt_node_count(t->root), tt_node_depth(t->root),

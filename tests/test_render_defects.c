@@ -94,7 +94,7 @@ static void test_rate_too_low_for_strings(void **s) {
     (void)s;
     assert_int_equal(wdc(format("netlists/piano_treble.wdn --render %s/x.wav --seconds 0.01 --rate 2000", dir)), 1);
     assert_err_has("piano.wdn:7:9: error: string 'U1.S' is too short for its filters at 2000 Hz: its loop holds "
-                   "0.96 samples and needs at least 5 (lower f0, or raise --rate)");
+                   "0.96 samples and needs at least 5 (lower f0, or raise the rate)");
     assert_int_equal(wdc(format("netlists/piano_treble.wdn --render %s/x.wav --seconds 0.01 --rate 44100", dir)), 0);
 }
 

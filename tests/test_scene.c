@@ -227,6 +227,36 @@ static void test_cli_cache(void **s) {
     assert_int_equal(tl_system(cmd), 0);
 }
 
+/* A string too short for its filters at the scene's rate is an error at
+ * the string (wdc --check --rate, once per rate for a cached voice); at
+ * 4 kHz a 3 kHz string rendered detuned without a word. */
+static void test_cli_rate_for_strings(void **s) {
+    (void)s;
+    write_file("hi.wdn", ".voice hi\n.domain mechanical\n.input f\n"
+                         "string S1 0 0 L=0.3 f0=3000 mu=1m t60=1 taps=p@0.2,o@0.8\nforce F1 p 0 f\n"
+                         ".output vel v(o)\n.end\n");
+    write_file("lo.wds", "(rate 4000) (length 0.05)\n(voice h \"hi.wdn\")\n");
+    write_file("ok.wds", "(rate 48000) (length 0.05)\n(voice h \"hi.wdn\")\n");
+    char cmd[8 * PATH_MAX];
+    for (int k = 0; k < 2; k++) { /* the second time from the cache */
+        snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/lo.wds -o %s/x.wav 2>&1 | grep -q "
+                 "\"hi.wdn:4:8: error: string 'S1' is too short for its filters at 4000 Hz: its loop holds 1.33 "
+                 "samples\"", g_dir, g_dir, g_dir);
+        assert_int_equal(tl_system(cmd), 0);
+        snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/lo.wds -o %s/x.wav 2>/dev/null", g_dir,
+                 g_dir, g_dir);
+        assert_int_equal(tl_system(cmd), 1);
+        snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/ok.wds -o %s/x.wav --quiet", g_dir, g_dir,
+                 g_dir);
+        assert_int_equal(tl_system(cmd), 0);
+    }
+    /* and a tree's voice node at the tree's rate */
+    write_file("hi.tt", "(* 0.1 (voice \"hi.wdn\" (in (noise))))\n");
+    snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt tree %s/hi.tt --rate 4000 -o %s/x.wav 2>/dev/null", g_dir,
+             g_dir, g_dir);
+    assert_int_equal(tl_system(cmd), 1);
+}
+
 /* Without (length), a scene lasts until its last event has rung down:
  * past the last event, ending in silence, and soon after it falls quiet. */
 static void test_rings_down(void **s) {
@@ -626,7 +656,7 @@ static void test_fuzz(void **s) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache),   cmocka_unit_test(test_rings_down),
+        cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache), cmocka_unit_test(test_cli_rate_for_strings),   cmocka_unit_test(test_rings_down),
         cmocka_unit_test(test_gain_curve),  cmocka_unit_test(test_load_errors), cmocka_unit_test(test_bind_errors),
         cmocka_unit_test(test_bind_warnings), cmocka_unit_test(test_binaural_rates),
         cmocka_unit_test(test_fuzz),        cmocka_unit_test(test_placed_complex),
