@@ -279,6 +279,25 @@ static int value(wdrt_scene *S, const sx *x, scnum *v, int curves) {
     return number(S, x, &v->v);
 }
 
+/* Gains are factors of at most GAIN_MAX in size (+120 dB): past that a
+ * sound is surely a typo, and would overflow what a WAV file holds. */
+#define GAIN_MAX 1e6
+#define GAIN_WHY "a gain is a factor of at most 10^6 (+120 dB) in size"
+
+/* A gain read by value(): a number, or each point of a curve, in range. */
+static int gain_value(wdrt_scene *S, const sx *x, scnum *g) {
+    if (value(S, x, g, 1))
+        return -1;
+    if (g->curve) {
+        for (const sx *k = g->curve->head->next; k; k = k->next)
+            if (!(fabs(k->head->next->num) <= GAIN_MAX))
+                return ERR(k->head->next, GAIN_WHY);
+    } else if (!g->motion && !(fabs(g->v) <= GAIN_MAX)) {
+        return ERR(x, GAIN_WHY);
+    }
+    return 0;
+}
+
 static double curve_end(const sx *c) {
     const sx *k = c->head->next;
     while (k->next)
@@ -695,7 +714,7 @@ static int voice_prop(wdrt_scene *S, scvoice *v, const sx *p) {
     }
     if (!strcmp(k, "gain")) {
         scnum g;
-        if (arity(S, p, 2, 2, "(gain G)") || value(S, a, &g, 1))
+        if (arity(S, p, 2, 2, "(gain G)") || gain_value(S, a, &g))
             return -1;
         v->gain = g.v, v->gain_curve = g.curve;
         return 0;
@@ -918,7 +937,7 @@ static int complex_prop(wdrt_scene *S, sccomplex *c, const sx *p, cx_sound_opts 
     if (!strcmp(k, "tempo"))
         return cx_number(S, p, "(tempo X)", 0.01, 100, "a tempo is a speed factor from 0.01 to 100", &o->tempo);
     if (!strcmp(k, "gain"))
-        return cx_number(S, p, "(gain G)", -1e6, 1e6, "a gain is a number", &c->gain);
+        return cx_number(S, p, "(gain G)", -GAIN_MAX, GAIN_MAX, GAIN_WHY, &c->gain);
     if (!strcmp(k, "pan"))
         return cx_number(S, p, "(pan X)", -1, 1, "pan lies between -1 (left) and 1 (right)", &c->pan);
     if (!strcmp(k, "at"))
@@ -1223,8 +1242,8 @@ static int body_prop(wdrt_scene *S, scbody *b, const sx *p) {
             return ERR(a, "a cutoff is a frequency in Hz, above 0 and below 10^6");
         *(k[0] == 'r' ? &b->surf.cutoff_roll : &b->surf.cutoff_slip) = x;
     } else if (!strcmp(k, "gain")) {
-        if (!isfinite(x))
-            return ERR(a, "a gain is a number");
+        if (!(fabs(x) <= GAIN_MAX))
+            return ERR(a, GAIN_WHY);
         b->gain = x;
     } else if (!strcmp(k, "quiet")) {
         if (!(x <= 0 && x >= -300))
@@ -1538,6 +1557,8 @@ static int play(wdrt_scene *S, const sx *f, scevent *e) {
         } else if (sx_is(p->head, "gain")) {
             if (arity(S, p, 2, 2, "(gain G)") || number(S, p->head->next, &e->gain))
                 return -1;
+            if (!(fabs(e->gain) <= GAIN_MAX))
+                return ERR(p->head->next, GAIN_WHY);
         } else if (sx_is(p->head, "priority")) {
             double x;
             if (arity(S, p, 2, 2, "(priority P)") || number(S, p->head->next, &x))
@@ -1625,7 +1646,7 @@ static int event(wdrt_scene *S, const sx *f, double t, scevent *e) {
     case SE_GAIN:
         if (arity(S, f, 3, 3, "(gain NAME G)"))
             return -1;
-        return value(S, a, &e->set.val, 1);
+        return gain_value(S, a, &e->set.val);
     case SE_PLAY:
         if (!v->pool)
             return ERR(f->head->next, "'%s' is a single voice: play takes a voice with (pool N)", v->name);
