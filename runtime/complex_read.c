@@ -550,6 +550,14 @@ cx_complex *cx_parse(const char *path, const char *text, size_t len, const char 
     skip_newlines(&R);
     R.lutz = R.t.kind == T_NAME && !is_word(&R.t, "coordinates");
     cx_complex *K = NULL;
+    if (name && !R.lutz) { /* a name picks one of a Lutz file's lists; this file holds one complex */
+        if (err && errlen)
+            snprintf(err, errlen, "%s: error: no complex named '%s': the file holds one complex, of facets a line, "
+                     "and names only a Lutz file's lists\n", R.path, name);
+        free(R.name);
+        free(R.kname);
+        return NULL;
+    }
     if (R.lutz ? !lutz_file(&R) : !plain_file(&R))
         K = make(&R);
     if (K && (!(K->path = malloc(strlen(R.path) + 1)) || (R.lutz && !(K->name = malloc(strlen(R.kname) + 1))))) {

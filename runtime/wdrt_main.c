@@ -573,6 +573,8 @@ static cxopts parse_complex(int argc, char **argv) {
             o.quiet = 1;
         } else if (!strcmp(a, "--tempo")) {
             o.snd.tempo = take_number(argc, argv, &i);
+            if (o.snd.tempo > 100) /* a 1-wave of 2.4 ms, as a scene's (tempo X) allows; faster ones vanish */
+                usage_error("--tempo is a speed factor above 0 and at most 100");
         } else if (!strcmp(a, "--rate")) {
             o.rate = take_number(argc, argv, &i);
             if (o.rate < 1000 || o.rate > 768000)

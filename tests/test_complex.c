@@ -994,6 +994,9 @@ static void test_cli(void **s) {
     assert_int_equal(tl_system(cmd), 1);
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo -1 2>/dev/null", t);
     assert_int_equal(tl_system(cmd), 2);
+    /* so fast its notes vanish (a score of 0 s, silent, at 1e9) */
+    snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo 101 2>&1 | grep -q 'at most 100'", t);
+    assert_int_equal(tl_system(cmd), 0);
     /* a tempo so slow the score passes a day, or what a WAV file holds, is
      * refused before anything is rendered (0.48 s of two 1-waves at tempo 1) */
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --tempo 1e-6 -o %s/slow.wav 2>&1 | grep -q 'more than a day'", t,
@@ -1005,6 +1008,11 @@ static void test_cli(void **s) {
     snprintf(cmd, sizeof cmd, "test ! -e %s/slow.wav", g_dir);
     assert_int_equal(tl_system(cmd), 0);
     assert_int_equal(tl_system("bin/wdrt complex /nonexistent.txt 2>/dev/null"), 1);
+    /* --name picks a list of a Lutz file: of a file of one complex it is an error, not ignored */
+    const char *plain = write_file("plain.txt", "1 2 3\n2 3 4\n");
+    snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --name nope 2>&1 | grep -q \"no complex named 'nope': the file "
+             "holds one complex\"", plain);
+    assert_int_equal(tl_system(cmd), 0);
 }
 
 /* ---- errors ---- */
