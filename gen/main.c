@@ -47,7 +47,7 @@ static void usage(FILE *f) {
     fprintf(f, "%s", synopsis);
     fprintf(f,
         "nonlinear elements: [--solver fast|newton|omega|pwl] [--table N] [--tol T] [--maxit N]\n"
-        "--tol T: a Newton solve's relative tolerance (default 1e-12); the fast solver's error is\n"
+        "--tol T: a Newton solve's relative tolerance (default 1e-12, at most 1e-3); the fast solver's error is\n"
         "          below 5e-8 (|v| + nVt) by its table, and only a T below that adds Halley steps\n"
         "SPEC: impulse[:A] | step[:A] | sine:FREQ[:A] | noise[:A] | FILE.wav (one per .input, in order)\n"
         "--energy: the voice counts the work its sources do, sample by sample (its work()); without\n"
@@ -136,6 +136,8 @@ static Opts parse_args(int argc, char **argv) {
             o.maxit = (int)v;
         } else if (!strcmp(a, "--tol")) {
             o.tol = o.fast_tol = number_arg(a, TAKE());
+            if (o.tol > 1e-3) /* past it a Newton solve stops where it starts */
+                usage_error("--tol takes a relative tolerance above 0 and at most 1e-3, not %s", argv[i]);
         } else if (!strcmp(a, "--precision")) {
             const char *p = TAKE();
             if (strcmp(p, "float") && strcmp(p, "double"))

@@ -270,6 +270,9 @@ static void test_exit_status(void **s) {
     assert_int_equal(run("bin/wdc %s/noout.wdn -o %s --render %s/x.wav 2>/dev/null", dir, dir, dir), 1);
     assert_int_equal(run("CC=false bin/wdc netlists/rc_lowpass.wdn -o %s --render %s/x.wav 2>/dev/null", dir, dir), 3);
     assert_int_equal(run("bin/wdc netlists/tonestack.wdn --check"), 0);
+    /* a tolerance so loose a Newton solve would stop where it starts */
+    assert_int_equal(run("bin/wdc netlists/diode_clipper.wdn --tol 1 --check 2>/dev/null"), 2);
+    assert_int_equal(run("bin/wdc netlists/diode_clipper.wdn --tol 1e-3 --check"), 0);
 }
 
 int main(void) {
