@@ -732,7 +732,7 @@ static bool directive(Parser *P, Line *l) {
 SrcFile *srcfile_new(const char *path, const char *text) {
     SrcFile *f = arena_alloc(sizeof(SrcFile));
     f->path = arena_strdup(path);
-    f->text = text;
+    f->text = strncmp(text, "\xef\xbb\xbf", 3) ? text : text + 3; /* a UTF-8 byte-order mark, as editors on Windows write */
     return f;
 }
 

@@ -708,6 +708,8 @@ static int document(Parser *P)
 /* An empty doc holding copies of path and text, or NULL. */
 static sx_doc *doc_new(const char *path, const char *text, size_t len)
 {
+    if (len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3)) /* a UTF-8 byte-order mark, as editors on Windows write */
+        text += 3, len -= 3;
     sx_doc *d = SX_MALLOC(sizeof *d);
     if (!d)
         return NULL;
@@ -743,7 +745,7 @@ sx_doc *sx_parse(const char *path, const char *text, size_t len, char *err, size
         file_error(path, err, errlen, "out of memory");
         return NULL;
     }
-    Parser P = {.doc = d, .p = d->src, .end = d->src + len, .line_start = d->src,
+    Parser P = {.doc = d, .p = d->src, .end = d->src + d->srclen, .line_start = d->src,
                 .line = 1, .err = err, .errlen = errlen, .last_line = 1, .last_col = 1};
     if (document(&P)) {
         sx_free(d);

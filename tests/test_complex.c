@@ -1009,9 +1009,11 @@ static void test_cli(void **s) {
     assert_int_equal(tl_system(cmd), 0);
     assert_int_equal(tl_system("bin/wdrt complex /nonexistent.txt 2>/dev/null"), 1);
     /* --name picks a list of a Lutz file: of a file of one complex it is an error, not ignored */
-    const char *plain = write_file("plain.txt", "1 2 3\n2 3 4\n");
+    const char *plain = write_file("plain.txt", "\xef\xbb\xbf" "1 2 3\r\n2 3 4\r\n"); /* a byte-order mark and CRLF, read */
     snprintf(cmd, sizeof cmd, "bin/wdrt complex %s --name nope 2>&1 | grep -q \"no complex named 'nope': the file "
              "holds one complex\"", plain);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "bin/wdrt complex %s -o %s/plain.wav --quiet", plain, g_dir);
     assert_int_equal(tl_system(cmd), 0);
 }
 

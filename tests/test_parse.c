@@ -883,6 +883,17 @@ static void test_include_cycles(void **state) {
     free(out);
 }
 
+/* A UTF-8 byte-order mark at the start of a netlist (as editors on
+ * Windows write) is skipped, and CRLF line ends read as LF; columns
+ * count after the mark. */
+static void test_byte_order_mark(void **state) {
+    (void)state;
+    Circuit *c = load_ok("t.wdn", "\xef\xbb\xbf.voice bom\r\n.input in\r\n" SRC "R1 a b 1k\r\nC1 b 0 1u\r\n"
+                                  ".output y v(b)\r\n");
+    assert_string_equal(c->name, "bom");
+    expect_error("\xef\xbb\xbf.voyce bom\n", "t.wdn:1:1: error: unknown directive '.voyce'");
+}
+
 /* A long line is shown 100 bytes about the column, "..." where it is cut,
  * with the caret under the column. */
 static void test_long_line(void **state) {
@@ -1128,7 +1139,7 @@ int main(void) {
         cmocka_unit_test(test_deck),
         cmocka_unit_test(test_deck_sources),
         cmocka_unit_test(test_include_cycles),
-        cmocka_unit_test(test_spice_numbers), cmocka_unit_test(test_long_line),
+        cmocka_unit_test(test_spice_numbers), cmocka_unit_test(test_long_line), cmocka_unit_test(test_byte_order_mark),
         cmocka_unit_test(test_comments_and_continuations),
         cmocka_unit_test(test_params),
         cmocka_unit_test(test_blocks),

@@ -303,6 +303,13 @@ static void comments_and_empty_texts(void **state)
     assert_int_equal(l->len, 2);
     expect_node(sx_nth(l, 1), SX_SYM, 3, 2, "e");
     sx_free(d);
+    /* a UTF-8 byte-order mark at the start is skipped: columns count after it */
+    d = parse_ok("\xef\xbb\xbf(a b)\r\n");
+    assert_int_equal(d->nforms, 1);
+    expect_node(d->forms, SX_LIST, 1, 1, NULL);
+    expect_node(sx_nth(d->forms, 1), SX_SYM, 1, 4, "b");
+    sx_free(d);
+    expect_error("\xef\xbb\xbf(a\n", PATH ":1:3: error: expected ')' to close '(' at 1:1\n  (a\n    ^\n");
 }
 
 /* ---- structure and positions ---- */
@@ -516,8 +523,9 @@ static void error_bytes(void **state)
     expect_error("x\n; a\x02\n", PATH ":2:4: error: stray character 0x02\n  ; a\x02\n     ^\n");
     expect_error("(caf\xc3\xa9)", PATH ":1:5: error: non-ASCII byte 0xc3 outside a string or "
                                   "comment\n  (caf\xc3\xa9)\n      ^\n");
-    expect_error("\xef\xbb\xbf(a)", PATH ":1:1: error: non-ASCII byte 0xef outside a string "
-                                    "or comment\n  \xef\xbb\xbf(a)\n  ^\n");
+    /* a byte-order mark is skipped at the start only */
+    expect_error("(a)\xef\xbb\xbf", PATH ":1:4: error: non-ASCII byte 0xef outside a string "
+                                    "or comment\n  (a)\xef\xbb\xbf\n     ^\n");
     expect_error("(a [b])", PATH ":1:4: error: unexpected character '['\n  (a [b])\n     ^\n");
     expect_error("'x", PATH ":1:1: error: unexpected character '''\n  'x\n  ^\n");
     expect_error("a,b", PATH ":1:2: error: unexpected character ','\n  a,b\n   ^\n");
