@@ -604,7 +604,8 @@ static int sink_open(const Opts *o, const Circuit *c, double fs, Sink *k) {
     }
     if (k->csv && (k->csv_tmp = wdrt_temp_beside(k->csv), !(k->f = fopen(k->csv_tmp ? k->csv_tmp : k->csv, "w")))) {
         fprintf(stderr, "wdc: error: cannot write '%s'\n", k->csv);
-        wdrt_temp_settle(k->csv_tmp, k->csv, 0);
+        if (k->csv_tmp) /* in place, nothing was written: a file at its name stays */
+            wdrt_temp_settle(k->csv_tmp, k->csv, 0);
         wdrt_wav_abort(k->w);
         return EXIT_USAGE;
     }

@@ -32,8 +32,9 @@ struct wdrt_wav_out {
 char *wdrt_temp_beside(const char *path)
 {
     struct stat sb;
-    if (lstat(path, &sb) == 0 && !S_ISREG(sb.st_mode))
-        return NULL; /* a device, a FIFO or a link is written as it is */
+    int exists = lstat(path, &sb) == 0;
+    if (exists && (!S_ISREG(sb.st_mode) || access(path, W_OK) != 0))
+        return NULL; /* a device, a FIFO, a link, or a file we may not write, is written (or refused) as it is */
     size_t n = strlen(path);
     char *t = malloc(n + 8);
     if (!t)
@@ -47,7 +48,8 @@ char *wdrt_temp_beside(const char *path)
     }
     mode_t mask = umask(0);
     umask(mask);
-    (void)fchmod(fd, 0666 & ~mask); /* what creating path itself would give */
+    /* the mode of the file it replaces, or what creating path would give */
+    (void)fchmod(fd, exists ? sb.st_mode & 07777 : 0666 & ~mask);
     close(fd);
     return t;
 }
@@ -101,9 +103,12 @@ wdrt_result wdrt_wav_open(const char *path, int nch, double fs, wdrt_wav_out **o
     memcpy(w->path, path, n);
     w->nch = nch;
     w->tmp = wdrt_temp_beside(path);
+    errno = 0;
     if (!(w->f = sf_open(w->tmp ? w->tmp : path, SFM_WRITE, &info))) {
-        fprintf(stderr, "wdrt: %s: %s\n", path, sf_strerror(NULL));
-        wdrt_temp_settle(w->tmp, path, 0);
+        /* the system's reason where there is one ("Is a directory"), else libsndfile's */
+        fprintf(stderr, "%s: cannot write: %s\n", path, errno ? strerror(errno) : sf_strerror(NULL));
+        if (w->tmp) /* in place, nothing was written: a file at path stays */
+            wdrt_temp_settle(w->tmp, path, 0);
         free(w->path);
         free(w);
         return WDRT_IO;

@@ -586,14 +586,16 @@ wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes)
 wdrt_result wdrt_wav_close(wdrt_wav_out *w);
 wdrt_result wdrt_wav_abort(wdrt_wav_out *w);
 
-/* A new empty file beside path (path.XXXXXX, with the permissions path
- * would be made with), malloc'ed, to write and then rename into place;
- * NULL where path names a device, a FIFO or a symbolic link (whose
- * target is written), or none can be made: then
+/* A new empty file beside path (path.XXXXXX, with the permissions of the
+ * file it will replace, or those path would be made with), malloc'ed, to
+ * write and then rename into place; NULL where path names a device, a
+ * FIFO, a symbolic link (whose target is written) or a file this process
+ * may not write, or none can be made: then
  * path is written itself.  wdrt_temp_settle renames tmp to path (keep)
  * or removes it (removing path itself, if it was written in place and
- * is a regular file), frees tmp, and returns 0, or -1 (errno says why)
- * if the file is not in place. */
+ * is a regular file: call it so only once something was written there),
+ * frees tmp, and returns 0, or -1 (errno says why) if the file is not in
+ * place. */
 char *wdrt_temp_beside(const char *path);
 int wdrt_temp_settle(char *tmp, const char *path, int keep);
 
