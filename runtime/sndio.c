@@ -10,10 +10,13 @@
 #include <errno.h>
 #include <float.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <sndfile.h>
@@ -35,21 +38,27 @@ char *wdrt_temp_beside(const char *path)
     int exists = lstat(path, &sb) == 0;
     if (exists && (!S_ISREG(sb.st_mode) || access(path, W_OK) != 0))
         return NULL; /* a device, a FIFO, a link, or a file we may not write, is written (or refused) as it is */
-    size_t n = strlen(path);
-    char *t = malloc(n + 8);
+    size_t n = strlen(path) + 40;
+    char *t = malloc(n);
     if (!t)
         return NULL;
-    memcpy(t, path, n);
-    memcpy(t + n, ".XXXXXX", 8);
-    int fd = mkstemp(t);
+    /* made as path itself would be (0666 less the umask, which only the
+     * kernel applies without a race), under a name no other writer has */
+    int fd = -1;
+    for (unsigned long k = 0; k < 64 && fd < 0; k++) { /* another name where one is taken */
+        unsigned long x = (unsigned long)getpid() * 2654435761ul ^ (unsigned long)time(NULL) ^
+                          (unsigned long)(uintptr_t)&fd ^ k * 40503ul;
+        snprintf(t, n, "%s.%06lx", path, x & 0xfffffful);
+        fd = open(t, O_WRONLY | O_CREAT | O_EXCL, 0666);
+        if (fd < 0 && errno != EEXIST)
+            break;
+    }
     if (fd < 0) {
         free(t);
         return NULL;
     }
-    mode_t mask = umask(0);
-    umask(mask);
-    /* the mode of the file it replaces, or what creating path would give */
-    (void)fchmod(fd, exists ? sb.st_mode & 07777 : 0666 & ~mask);
+    if (exists) /* the mode of the file it replaces */
+        (void)fchmod(fd, sb.st_mode & 07777);
     close(fd);
     return t;
 }

@@ -586,7 +586,7 @@ wdrt_result wdrt_wav_append(wdrt_wav_out *w, const double *frames, long nframes)
 wdrt_result wdrt_wav_close(wdrt_wav_out *w);
 wdrt_result wdrt_wav_abort(wdrt_wav_out *w);
 
-/* A new empty file beside path (path.XXXXXX, with the permissions of the
+/* A new empty file beside path (path.HHHHHH, with the permissions of the
  * file it will replace, or those path would be made with), malloc'ed, to
  * write and then rename into place; NULL where path names a device, a
  * FIFO, a symbolic link (whose target is written) or a file this process
