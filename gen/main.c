@@ -419,7 +419,7 @@ static Event *read_events(const char *path, EventCtx *x, int *nev) {
     x->file = srcfile_new(path, text);
     Event *ev = arena_alloc(sizeof(Event));
     int n = 0, cap = 1, line = 0;
-    for (const char *l = text; *l; line++) {
+    for (const char *l = x->file->text; *l; line++) { /* the text after a byte-order mark, as srcfile_new keeps it */
         const char *nl = strchr(l, '\n');
         size_t len = nl ? (size_t)(nl - l) : strlen(l);
         char *copy = arena_strndup(l, len), *hash = strchr(copy, '#');

@@ -204,6 +204,10 @@ static void test_event_diagnostics(void **s) {
     assert_non_null(strstr(t, format("%s:1:62: error: ", ev)));
     assert_non_null(strstr(t, "at most 8"));
     assert_non_null(strstr(t, "\n  0 ic v(x)=0"));
+    /* a byte-order mark and CRLF, as editors on Windows write, are read; columns count after the mark */
+    ev = tl_write_file(dir, "bom.events", "\xef\xbb\xbf" "0.1 set R 1k\r\n0.2 set Q 3\r\n");
+    assert_int_equal(wdc(format("netlists/rc_lowpass.wdn --render %s/x.wav --events %s", dir, ev)), 1);
+    assert_err_has(format("%s:2:9: error: unknown param 'Q'", ev));
     /* eight are fine */
     ev = tl_write_file(dir, "eight.events", "0 ic v(x)=0 v(x)=0 v(x)=0 v(x)=0 v(x)=0 v(x)=0 v(x)=0 v(x)=1\n");
     assert_int_equal(wdc(format("netlists/msd.wdn --render %s/x.wav --seconds 0.01 --events %s", dir, ev)), 0);
