@@ -742,7 +742,7 @@ SrcFile *srcfile_new(const char *path, const char *text) {
 static void control(Parser *P, Vec *lines, SrcPos pos) {
     Token *start = P->tok;
     Token *t = P->tok;
-    while (t->kind != TK_EOF && !tok_is(t, ".endc"))
+    while (t->kind != TK_EOF && !(tok_is(t, ".endc") && t[-1].kind == TK_EOL)) /* a line of its own */
         t++;
     if (t->kind == TK_EOF)
         error_at(pos, "'.control' without '.endc'");
@@ -750,7 +750,7 @@ static void control(Parser *P, Vec *lines, SrcPos pos) {
                         "print, plot, wrdata and write name, and skips the rest");
     while (!at_eol(P))
         P->tok++;
-    while (!tok_is(P->tok, ".endc")) {
+    while (P->tok != t) { /* the lines up to that '.endc' */
         if (P->tok->kind == TK_EOL) {
             P->tok++;
             continue;
@@ -774,7 +774,7 @@ static void control(Parser *P, Vec *lines, SrcPos pos) {
             Vec refs = {0};
             if (file && !at_eol(P)) /* the file's name */
                 P->tok++;
-            while (!at_eol(P)) {
+            while (!at_eol(P) && P->tok != t) {
                 Token *w = P->tok;
                 if (w->kind == TK_IDENT && w[1].kind == TK_LPAREN &&
                     (w->len == 1 ? strchr("vi", w->text[0]) != NULL : ac_measure(w)))
@@ -788,7 +788,7 @@ static void control(Parser *P, Vec *lines, SrcPos pos) {
                 vec_push(lines, l);
             }
         }
-        while (!at_eol(P))
+        while (!at_eol(P) && P->tok != t)
             P->tok++;
     }
     while (!at_eol(P))

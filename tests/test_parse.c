@@ -779,6 +779,10 @@ static void test_deck(void **state) {
     expect_deck_error("title\nV1 a 0 1\nR1 a 0 1k\n.tran 0 1\n.end\n",
                       "t.cir:4:7: error: .tran's step gives a rate of inf Hz; it must be from 1 Hz to 10 MHz");
     expect_deck_error("title\n.control\nrun\n", "t.cir:2:1: error: '.control' without '.endc'");
+    /* an '.endc' inside a line does not end it (the reader ran past the end of the deck: the fuzzer's find) */
+    expect_deck_error("title\nV1 in 0 1\nR1 in out 1k\nC1 out 0 1u\n.control\nrun\n}1-4*.endc\n.print tran v(out)\n",
+                      "t.cir:5:1: error: '.control' without '.endc'");
+    expect_deck_error("title\n.control\nprint v(a) .endc\n", "t.cir:2:1: error: '.control' without '.endc'");
     /* a SPICE device the compiler does not model is named as SPICE names it */
     expect_deck_error("title\nV1 a 0 1\nR1 a b 1k\nM1 b a 0 0 nmos\n.end\n",
                       "t.cir:4:1: error: 'M1' is a MOSFET, which decks here do not take (they take R, C, L, V, I, D, "
