@@ -1132,7 +1132,7 @@ static void root_fns(Ctx *x, const Names *live) {
 static void mterm(Ctx *x, Buf *t, int b, int k, int j, const char *in) {
     const int ne = x->w->roots[b].nedge;
     const char *plus = t->len ? " + " : "";
-    if (in[strspn(in, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.")])
+    if (!plain(in))
         in = format("(%s)", in);
     if (!x->mnum[b] || !x->mnum[b][k * ne + j])
         emit(t, "%sm%d_%d_%d * %s", plus, b, k, j, in);

@@ -396,7 +396,9 @@ static int read_number(const char *s, size_t n, double *out, char *why, size_t w
         return -1;
     }
     size_t m = decimal_len(buf);
+    errno = 0;
     double v = decimal_value(buf, m);
+    int under = errno == ERANGE && fabs(v) < 1; /* 0 or subnormal from digits that were not 0 (gen/lex.c's test) */
     const char *rest = buf + m;
     if (!strcmp(rest, "kg")) /* the unit of mass, not kilo-grams */
         rest += 2;
@@ -409,9 +411,7 @@ static int read_number(const char *s, size_t n, double *out, char *why, size_t w
         snprintf(why, whylen, "number out of range");
         return -1;
     }
-    /* a mantissa that is not 0 read as 0 or a subnormal has underflowed */
-    size_t nz = strcspn(buf, "123456789eE");
-    if (fabs(v) < DBL_MIN && nz < m && buf[nz] != 'e' && buf[nz] != 'E') {
+    if (under || (v != 0 && fabs(v) < DBL_MIN)) {
         snprintf(why, whylen, "number out of range (its magnitude is below 2.2e-308)");
         return -1;
     }

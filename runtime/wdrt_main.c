@@ -228,8 +228,6 @@ static const char *wdc_path(const char *argv0) {
     return access(buf, X_OK) == 0 ? buf : "wdc";
 }
 
-/* Builds (or finds in the cache) the voice of `netlist`.  Returns 0, or
- * the exit status after printing why. */
 /* A voice runs at any rate, but a string's or tube's loop needs a rate
  * high enough for its pitch: `wdc --check --rate` says so at the string,
  * once for each rate a cached voice is used at (a file in its folder
@@ -254,6 +252,8 @@ static int check_rate(const char *dir, const char *netlist, const char *wdc, dou
     return 0;
 }
 
+/* Builds (or finds in the cache) the voice of `netlist`, checked at
+ * `rate`.  Returns 0, or the exit status after printing why. */
 static int cached_voice(const char *netlist, const char *wdc, double rate, wdrt_voice_lib *lib) {
     const char *root = getenv("WDRT_CACHE");
     if (!root || !*root)
@@ -609,9 +609,9 @@ static int start_vertex(const cx_complex *K, const char *file, const char *text)
     return id;
 }
 
-/* Renders the score through an engine, as a scene would host it. */
-/* Renders the score through the sink in runs of 4096 frames; *n frames
- * in all.  0, or -1 (out of memory, or the sink refused a run). */
+/* Renders the score through an engine, as a scene would host it, into
+ * the sink in runs of 4096 frames; *n frames in all.  0, or -1 (out of
+ * memory, or the sink refused a run). */
 static int render_score(const cx_score *sc, double fs, long *n, sink *k) {
     cx_source src;
     cx_source_init(&src, sc, 0);
