@@ -212,6 +212,7 @@ typedef struct Ctx {
     bool single;
     bool energy;     /* work accounting in process */
     bool settle;     /* reset and set_ic solve for a consistent Kirchhoff state */
+    bool ic_direct;  /* strike target k sets react[k] and nothing else */
     bool flushes;    /* process flushes tiny states, every FLUSH_RUN samples counted across calls */
     Stmt *stmt;      /* the sample loop, in order */
     int nstmt, capstmt;
@@ -522,6 +523,15 @@ static void emit_wg_specs(Ctx *x, Buf *o) {
     emit(o, "    }\n}\n");
 }
 
+/* An element's value as update passes it on, kept within (1e-18, 1e300)
+ * by pos(): a number or a param whose range lies within needs no pos(). */
+static const char *pos_value(Ctx *x, const Expr *e) {
+    const Param *p = e->kind == EX_PARAM ? &x->c->params[e->param] : NULL;
+    if ((e->kind == EX_NUM && e->num > 1e-18 && e->num < 1e300) || (p && p->min > 1e-18 && p->max < 1e300))
+        return cexpr(x, e);
+    return format("pos(%s)", cexpr(x, e));
+}
+
 static void emit_update(Ctx *x) {
     int nb = 0;
     const Circuit *c = x->c;
@@ -529,7 +539,7 @@ static void emit_update(Ctx *x) {
         const WNode *n = x->w->nodes[i];
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
-            const char *v = format("pos(%s)", cexpr(x, e->val));
+            const char *v = pos_value(x, e->val);
             upd(x, -1, NULL, "    %s /* %s (%s:%d:%d) */\n", guard(n->pmask), e->name, e->pos.file->path, e->pos.line,
                 e->pos.col);
             /* a reactance a param moves is retuned; one that none moves
@@ -1773,7 +1783,11 @@ static void emit_hoist(Ctx *x) {
                 emit(&wb, "        st->s_e[%d] = %s;\n", x->src[i],
                      e->input >= 0 ? format("(real)in[%d][nframes - 1]", e->input) : format("st->c_e[%d]", x->src[i]));
         }
-        local(x, NULL, NULL, format("    if (nframes > 0) {\n%s    }\n", str(&wb)), NULL);
+        /* one statement needs no braces */
+        bool one = strchr(str(&wb), '\n') == str(&wb) + wb.len - 1;
+        local(x, NULL, NULL,
+              one ? format("    if (nframes > 0)\n%s", str(&wb)) : format("    if (nframes > 0) {\n%s    }\n", str(&wb)),
+              NULL);
     }
 }
 
@@ -1985,6 +1999,7 @@ void wdf_ic_settable(const Wdf *w, bool *set) {
 static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
     const Circuit *c = x->c;
     int id = 0, full = 0;
+    bool direct = true; /* every case sets react[id] to its value */
     bool *set = arena_alloc(sizeof(bool) * (size_t)(2 * c->nnodes + 1));
     wdf_ic_settable(x->w, set);
     /* the reactances from each node to ground, in tree order */
@@ -2038,9 +2053,11 @@ static void emit_ic_cases(Ctx *x, Buf *targets, Buf *cases) {
                 continue;
             emit(targets, "%s{\"%c(%s)\", \"%s\"}", id ? ", " : "", fn, c->nodes[nd], domain_unit(c->domain, fn));
             emit(cases, "        case %d: /* %c(%s) */\n%s            break;\n", id, fn, c->nodes[nd], str(&t));
+            direct = direct && !strcmp(str(&t), format("            react[%d] = values[k];\n", id));
             id++;
         }
     x->nic = id;
+    x->ic_direct = direct;
 }
 
 /* ---- nonlinear elements: kernels, tables, hooks ---- */
@@ -3695,11 +3712,16 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
 static void reset_holes(Ctx *x, Holes *t, const char *dirty, const char *rest, const char *kirch, const char *cases) {
     const char *react = x->settle && x->nreact ? format("    double react[%d] = {0};\n", x->nreact) : "";
     const char *st = "    state *st = vst;\n";
+    /* reset brings the coefficients up to date only if it reads them: a
+     * cleared state is the same under any, and process updates first */
+    bool reads = uses(rest, "settle") || uses(rest, "dcop") || strstr(rest, "st->c_");
     const char *reset = with_st(st, format("%s%s%s%s%s", uses(rest, "p") ? "    const double *p = st->p;\n" : "",
-                                           uses(rest, "react") ? react : "", dirty, clears(x), rest));
+                                           uses(rest, "react") ? react : "", reads ? dirty : "", clears(x), rest));
     set(t, "reset_args", uses(reset, "vst") ? "void *vst" : "void *vst UNUSED");
     set(t, "reset", reset);
     const char *sw = *cases ? format("    for (int k = 0; k < n; k++) {\n        switch (ids[k]) {\n%s        }\n    }\n", cases) : "";
+    if (*cases && x->ic_direct)
+        sw = "    for (int k = 0; k < n; k++)\n        react[ids[k]] = values[k];\n";
     const char *res = x->settle ? format("settle(st, %s) == 0 ? 0 : -1", x->nreact ? "react" : "NULL") : "0";
     const char *head = format("%s%s%s", react, dirty, kirch);
     const char *parts[] = {head, sw, res};

@@ -161,6 +161,49 @@ static void test_work_only_with_energy(void **s) {
     }
 }
 
+/* A param set before reset acts as in a fresh voice that was given it,
+ * with or without a strike after the reset, to the bit: reset may leave
+ * the coefficients to process when the cleared state reads none. */
+static void test_param_then_reset(void **s) {
+    (void)s;
+    static const char *const nets[] = {"netlists/rc_lowpass.wdn", "netlists/msd.wdn", "netlists/tonestack.wdn",
+                                          "netlists/triangle.wdn"};
+    for (size_t k = 0; k < sizeof nets / sizeof nets[0]; k++)
+        for (int strike = 0; strike < 2; strike++) {
+            tl_voice v;
+            assert_int_equal(tl_voice_build(nets[k], 0, &v), 0);
+            const wdv_class *c = v.cls;
+            void *a = tl_state_new(c, 48000), *b = tl_state_new(c, 48000);
+            double x[128], o[2][8][128];
+            for (int n = 0; n < 128; n++)
+                x[n] = sin(0.05 * n) + (n % 7 == 0);
+            const double *in[8];
+            double *out[2][8];
+            for (int j = 0; j < 8; j++)
+                in[j] = x, out[0][j] = o[0][j], out[1][j] = o[1][j];
+            assert_true(c->n_inputs <= 8 && c->n_outputs <= 8 && c->n_params > 0);
+            c->process(a, in, out[0], 128);
+            const double val = 0.5 * (c->params[0].min + c->params[0].max);
+            assert_int_equal(c->set_param(a, 0, val), 0);
+            c->reset(a);
+            assert_int_equal(c->set_param(b, 0, val), 0);
+            int id = 0;
+            double w = 0.25;
+            if (strike && c->n_ic_targets > 0) {
+                assert_int_equal(c->set_ic(a, 1, &id, &w), 0);
+                assert_int_equal(c->set_ic(b, 1, &id, &w), 0);
+            }
+            c->process(a, in, out[0], 128);
+            c->process(b, in, out[1], 128);
+            for (int j = 0; j < c->n_outputs; j++)
+                assert_memory_equal(o[0][j], o[1][j], sizeof o[0][j]);
+            assert_true(c->energy(a) == c->energy(b));
+            tl_state_free(a);
+            tl_state_free(b);
+            tl_voice_free(&v);
+        }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_descriptors),
@@ -168,6 +211,7 @@ int main(void) {
         cmocka_unit_test(test_strike_and_reset),
         cmocka_unit_test(test_strike_parallel_masses),
         cmocka_unit_test(test_work_only_with_energy),
+        cmocka_unit_test(test_param_then_reset),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
