@@ -1024,6 +1024,7 @@ static void root_static(Ctx *x, int rb) {
     if (r->nctl) /* controlled sources: the general solve */
         return;
     Sx *sx = sx_new("u");
+    sx_once(sx, !x->opt->single);
     Sym *g = arena_alloc(sizeof(Sym) * (size_t)(ne + 1)), *val = arena_alloc(sizeof(Sym) * (size_t)(ne + 1));
     Sym *pot = arena_alloc(sizeof(Sym) * (size_t)(r->ncore + 1)), *cur = arena_alloc(sizeof(Sym) * (size_t)(ne + 2));
     for (int k = 0; k < ne; k++)
@@ -2291,6 +2292,7 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
     if (x->nctl || x->nlop) /* the straight-line solve takes conductances and sources only */
         return NULL;
     Sx *sx = sx_new("u");
+    sx_once(sx, !x->opt->single);
     Lin *L = lin_new(sx, c->nnodes - 1);
     int *ea = arena_alloc(sizeof(int) * (size_t)c->nelems);
     Sym *val = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + 1));
@@ -2418,6 +2420,7 @@ static bool dcop_try(Ctx *x, bool gmin) {
     if (!c->deck || c->uic || !x->settle || !x->nreact || x->nnl || c->nwgs || x->nline || x->nctl)
         return false;
     Sx *sx = sx_new("u");
+    sx_once(sx, !x->opt->single);
     Lin *L = lin_new(sx, c->nnodes - 1);
     int *ea = arena_alloc(sizeof(int) * (size_t)c->nelems);
     Sym *val = arena_alloc(sizeof(Sym) * (size_t)(2 * c->nelems + c->nnodes + 1));

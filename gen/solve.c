@@ -53,6 +53,8 @@ struct Sx {
     int *hash; /* open addressing over the temporaries' texts, 1 + item (0: empty) */
     int nhash;
     int fence; /* items before it were made before the last statement */
+    bool once;  /* a temporary read once is printed where it is read */
+    int *once_in; /* sx_code: temporary -> 1 + the item it is printed in, else 0 */
 };
 
 static unsigned text_hash(const char *s) {
@@ -233,7 +235,10 @@ double sx_value(const double *v, Sym a, double (*ext)(const char *text, void *ct
     return value(v, a, ext, ctx);
 }
 
-/* text with each temporary's marker replaced by its name */
+void sx_once(Sx *s, bool on) { s->once = on; }
+
+/* text with each temporary's marker replaced by its name, or by its own
+ * text in parentheses where it is printed in place */
 static void put(Sx *s, Buf *o, const char *text) {
     for (const char *p = text; *p;) {
         const char *m = strchr(p, '\001');
@@ -243,9 +248,89 @@ static void put(Sx *s, Buf *o, const char *text) {
         }
         buf_add(o, "%.*s", (int)(m - p), p);
         int k = atoi(m + 1);
-        buf_add(o, "%s%d", s->prefix, s->num[k]);
+        if (s->once_in && s->once_in[k]) {
+            buf_add(o, "(");
+            put(s, o, s->it[k].text);
+            buf_add(o, ")");
+        } else
+            buf_add(o, "%s%d", s->prefix, s->num[k]);
         p = strchr(m, '\002') + 1;
     }
+}
+
+/* The length of text as put prints it. */
+static int put_len(Sx *s, const char *text) {
+    int n = 0;
+    for (const char *p = text; *p;) {
+        const char *m = strchr(p, '\001');
+        if (!m)
+            return n + (int)strlen(p);
+        n += (int)(m - p);
+        int k = atoi(m + 1);
+        n += s->once_in[k] ? 2 + put_len(s, s->it[k].text) : (int)strlen(s->prefix) + 4;
+        p = strchr(m, '\002') + 1;
+    }
+    return n;
+}
+
+/* What statement text assigns, if it is one assignment "    LHS = ...;",
+ * else NULL (it may write anything). */
+static const char *assigns(const char *text) {
+    const char *eq = strstr(text, " = "), *nl = strchr(text, '\n');
+    if (strncmp(text, "    ", 4) || !eq || !nl || nl[1] || eq > nl || memchr(text + 4, ' ', (size_t)(eq - text - 4)))
+        return NULL;
+    return format("%.*s", (int)(eq - text - 4), text + 4);
+}
+
+/* The text of temporary k as put prints it. */
+static const char *put_text(Sx *s, int k) {
+    Buf b = {0};
+    put(s, &b, s->it[k].text);
+    return b.s ? b.s : "";
+}
+
+/* True if no statement between items k and u writes what temporary k
+ * reads: a few assignments, none of whose targets its text names.
+ * stmts[i] counts the statements among items 0..i-1, and sidx lists
+ * them. */
+static bool stays(Sx *s, int k, int u, const int *stmts, const int *sidx) {
+    if (stmts[u] - stmts[k + 1] > 8)
+        return false;
+    const char *text = NULL;
+    for (int j = stmts[k + 1]; j < stmts[u]; j++) {
+        const char *w = assigns(s->it[sidx[j]].text);
+        if (!w)
+            return false;
+        if (!text)
+            text = put_text(s, k);
+        if (strstr(text, w))
+            return false;
+    }
+    return true;
+}
+
+/* With sx_once: each live temporary that one item reads, and once, is
+ * printed inside that item, if no statement between them writes what it
+ * reads and the text stays short. */
+static void plan_once(Sx *s) {
+    int *uses = arena_alloc(sizeof(int) * (size_t)(s->n + 1)), *user = arena_alloc(sizeof(int) * (size_t)(s->n + 1));
+    int *stmts = arena_alloc(sizeof(int) * (size_t)(s->n + 1)), *sidx = arena_alloc(sizeof(int) * (size_t)(s->n + 1));
+    s->once_in = arena_alloc(sizeof(int) * (size_t)(s->n + 1));
+    for (int i = 0; i < s->n; i++) {
+        stmts[i + 1] = stmts[i];
+        if (s->it[i].stmt)
+            sidx[stmts[i + 1]++] = i;
+        if (!s->it[i].stmt && !s->it[i].live)
+            continue;
+        for (const char *m = strchr(s->it[i].text, '\001'); m; m = strchr(m + 1, '\001')) {
+            int k = atoi(m + 1);
+            uses[k]++, user[k] = i;
+        }
+    }
+    for (int k = 0; k < s->n; k++)
+        if (!s->it[k].stmt && s->it[k].live && uses[k] == 1 && put_len(s, s->it[k].text) <= 48 &&
+            stays(s, k, user[k], stmts, sidx))
+            s->once_in[k] = 1 + user[k];
 }
 
 void sx_code(Sx *s, Buf *o) {
@@ -254,13 +339,15 @@ void sx_code(Sx *s, Buf *o) {
             for (int j = 0; j < 2; j++)
                 if (s->it[i].dep[j] >= 0)
                     s->it[s->it[i].dep[j]].live = true;
+    if (s->once)
+        plan_once(s);
     for (int i = 0; i < s->n; i++) {
         const Item *it = &s->it[i];
         if (it->stmt) {
             put(s, o, it->text);
             continue;
         }
-        if (!it->live)
+        if (!it->live || (s->once_in && s->once_in[i]))
             continue;
         s->num[i] = s->next++;
         buf_add(o, "    const double %s%d = ", s->prefix, s->num[i]);

@@ -40,6 +40,9 @@ double *sx_run(Sx *s, double (*ext)(const char *text, void *ctx), void *ctx);
 double sx_value(const double *v, Sym a, double (*ext)(const char *text, void *ctx), void *ctx);
 /* Prints the statements and the temporaries they need, in order. */
 void sx_code(Sx *s, Buf *o);
+/* Whether sx_code prints a temporary read once where it is read (exact
+ * where every value is a double, as in a double voice). */
+void sx_once(Sx *s, bool on);
 
 /* A linear network of n nodes (-1: the reference): conductances with a
  * series emf (current g (v_p - v_q - emf) from p to q), ideal voltage

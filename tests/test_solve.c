@@ -302,12 +302,43 @@ static void test_printing(void **state) {
                              "    st->c_M[0] = (real)u1;\n");
 }
 
+/* With sx_once, a temporary read once is printed where it is read,
+ * unless a statement between them writes what it reads (or may write
+ * anything); a temporary read twice keeps its name. */
+static void test_printing_once(void **state) {
+    (void)state;
+    Sx *sx = sx_new("u");
+    sx_once(sx, true);
+    Sym g = sx_temp(sx, "1.0 / st->c_R[0]");
+    Sym d = sx_sub(sx, sym_ext("st->s_e[0]"), sym_ext("react[0]"));
+    Sym u = sx_mul(sx, sym_ext("st->c_R[1]"), sx_mul(sx, g, d));
+    Sym up = sx_add(sx, sym_ext("react[0]"), u), dn = sx_sub(sx, sym_ext("react[0]"), u);
+    Sym reads_a = sx_add(sx, sym_ext("st->s_a[0]"), sym_k(1));
+    sx_stmt(sx, format("    st->s_a[0] = (real)%s;\n", sx_use(sx, up)));
+    sx_stmt(sx, format("    st->s_b[0] = (real)%s;\n", sx_use(sx, dn)));
+    sx_stmt(sx, format("    st->s_c[0] = (real)%s;\n", sx_use(sx, reads_a)));
+    Sym e = sx_mul(sx, sym_ext("st->c_R[2]"), sym_ext("react[1]"));
+    sx_stmt(sx, "    {\n        anything();\n    }\n");
+    sx_stmt(sx, format("    st->s_d[0] = (real)%s;\n", sx_use(sx, e)));
+    Buf o = {0};
+    sx_code(sx, &o);
+    assert_string_equal(o.s, "    const double u0 = st->c_R[1] * ((1.0 / st->c_R[0]) * (st->s_e[0] - react[0]));\n"
+                             "    const double u1 = st->s_a[0] + 1.0;\n"
+                             "    st->s_a[0] = (real)(react[0] + u0);\n"
+                             "    st->s_b[0] = (real)(react[0] - u0);\n"
+                             "    st->s_c[0] = (real)u1;\n"
+                             "    const double u2 = st->c_R[2] * react[1];\n"
+                             "    {\n        anything();\n    }\n"
+                             "    st->s_d[0] = (real)u2;\n");
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_random_networks),
         cmocka_unit_test(test_refused),
         cmocka_unit_test(test_numbers_fold),
         cmocka_unit_test(test_printing),
+        cmocka_unit_test(test_printing_once),
     };
     return cmocka_run_group_tests_name("solve", tests, NULL, NULL);
 }
