@@ -2631,6 +2631,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, "double", "c_wR", W1(nw), "waveguides: port resistance");
     field(&b, r, "c_wf", W1(x->nwc), "waveguides: loss b and a, radiation a, allpass lattice k and c");
     field(&b, "double", "c_ww", W1(2 * nw), "waveguides: storage weights of their filters");
+    field(&b, "double", "c_werr", W1(nw), "waveguides: largest tuning error of each loop's design, cents");
     field(&b, r, "s_wf", W1(x->nwf), "waveguide filters: states");
     field(&b, r, "s_wfp", W1(x->nwf), "waveguide filters: states a sample earlier");
     field(&b, r, "s_wpre", W1(x->nsp), "waveguide ports: the wave that last arrived");
@@ -3708,6 +3709,13 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
                                          "    for (int k = 0; k < WDV_SOLVE_N; k++)\n"
                                          "        stats[k] = ((const state *)vst)->s_js[k];\n}\n\n" : "");
     set(t, "solve_stats_entry", any_joint(x) ? "voice_solve_stats" : "NULL");
+    set(t, "tuning", x->c->nwgs ? "static double voice_tuning(const void *vst) {\n"
+                                  "    const state *st = vst;\n"
+                                  "    double e = 0;\n"
+                                  "    for (int w = 0; w < N_WG; w++)\n"
+                                  "        e = st->c_werr[w] > e ? st->c_werr[w] : e;\n"
+                                  "    return e < WG_TOO_SHORT ? e : INFINITY;\n}\n\n" : "");
+    set(t, "tuning_entry", x->c->nwgs ? "voice_tuning" : "NULL");
 }
 
 /* reset and set_ic: what they set before settle (`rest`: initial values;

@@ -157,6 +157,11 @@ static double vtap_energy(const void *state) {
     return t->cls ? t->cls->energy((const char *)state + up16(sizeof *t)) : 0;
 }
 
+static double vtap_tuning(const void *state) {
+    const vtap_state *t = state;
+    return t->cls && t->cls->tuning ? t->cls->tuning((const char *)state + up16(sizeof *t)) : 0;
+}
+
 static void tap_bind(void *state, const void *data) {
     const tapref *r = data;
     const wdrt_body *b = &r->h->body[r->h->res_body[r->res]];
@@ -176,7 +181,8 @@ static const wdv_class tap_class = {"body",    WDV_ABI_VERSION, 64,           si
                                     1,         0,               0,            NULL,              tap_out,
                                     NULL,      NULL,            tap_init,     tap_reset,         tap_set_param,
                                     tap_get_param, tap_process, tap_energy,   tap_work,          tap_set_ic,
-                                    0,         NULL,            NULL,         NULL,              NULL};
+                                    0,         NULL,            NULL,         NULL,              NULL,
+                                    NULL};
 
 /* ---- set-up ---- */
 
@@ -305,6 +311,7 @@ int wdrt_bodies_add(wdrt_bodies *h, const wdrt_body *b) {
         c->state_size = up16(sizeof(vtap_state)) + up16(b->voice->state_size) +
                         sizeof(double) * BLOCK * (1 + (size_t)b->voice->n_outputs);
         c->init = vtap_init, c->reset = vtap_reset, c->process = vtap_process, c->energy = vtap_energy;
+        c->tuning = b->voice->tuning ? vtap_tuning : NULL;
     } else {
         surf_mode *m = calloc((size_t)b->nmodes, sizeof *m);
         if (!m)

@@ -669,6 +669,10 @@ wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg, void *mem, 
     e->rel = exp(-cfg->block / (0.05 * cfg->rate));
     e->base = mem;
     init_pools(e, cfg, m, &L);
+    /* a voice that cannot be tuned at this rate would play out of tune */
+    for (int i = 0; i < e->npools; i++)
+        if (e->pools[i].cfg.cls->tuning && !(e->pools[i].cfg.cls->tuning(e->pools[i].tmpl) < INFINITY))
+            return WDRT_OUT_OF_TUNE;
     init_space(e, cfg, m, &L);
     start_owned(e);
     e->s.budget_ns = e->budget;

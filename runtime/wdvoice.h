@@ -17,7 +17,7 @@
 
 #include <stddef.h>
 
-#define WDV_ABI_VERSION 7
+#define WDV_ABI_VERSION 8
 
 /* One audio input or output. */
 typedef struct wdv_port {
@@ -128,6 +128,14 @@ typedef struct wdv_class {
      * (wdc --maxit) before they converged, whose samples come from their
      * last iterate.  NULL: the voice has no joint solve. */
     void (*solve_stats)(const void *state, unsigned long stats[WDV_SOLVE_N]);
+    /* How far its strings and tubes are from the pitches they are tuned
+     * to: the largest error of the first twelve partials of any of them,
+     * in cents, as their loops are designed at the rate and params in
+     * effect (those of init, or of the last process call).  INFINITY where
+     * a loop is too short for its filters at that rate (its f0 too high
+     * for the rate): that voice plays out of tune, and a host should say
+     * so or choose a higher rate.  NULL: the voice has no string or tube. */
+    double (*tuning)(const void *state);
 } wdv_class;
 
 #endif

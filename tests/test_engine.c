@@ -116,6 +116,28 @@ static void test_play_at_frame(void **s) {
     free(ref);
 }
 
+/* An engine whose rate is too low for a voice's strings is refused
+ * (WDRT_OUT_OF_TUNE) rather than made to play out of tune: the piano at
+ * 2 kHz, not at 48 kHz; a voice without strings (msd) runs at 2 kHz. */
+static void test_out_of_tune(void **s) {
+    (void)s;
+    const double rates[] = {2000, FS};
+    for (int k = 0; k < 2; k++) {
+        wdrt_pool_config pc[2] = {wdrt_pool_config_init(g_piano.cls, 2), wdrt_pool_config_init(g_msd.cls, 2)};
+        pc[0].cost_ns = pc[1].cost_ns = 1;
+        for (int n = 1; n <= 2; n++) {
+            wdrt_engine_config ec = wdrt_engine_config_init(rates[k], 1, n, n == 1 ? pc + 1 : pc);
+            wdrt_engine *e = NULL;
+            wdrt_result r = wdrt_engine_init(&ec, NULL, &e);
+            assert_int_equal(r, n == 2 && k == 0 ? WDRT_OUT_OF_TUNE : WDRT_OK);
+            if (r == WDRT_OK)
+                wdrt_engine_uninit(e, NULL);
+        }
+    }
+    assert_string_equal(wdrt_result_str(WDRT_OUT_OF_TUNE),
+                        "a voice's string or tube is too short for its filters at this rate");
+}
+
 /* A standing voice sleeps once quiet: nothing changes before its fade,
  * the difference stays 90 dB under the peak, and a strike on the sleeper
  * wakes it to continue as the voice that never slept. */
@@ -577,7 +599,8 @@ static void test_batch_pool(void **s) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_play_at_frame), cmocka_unit_test(test_sleep),     cmocka_unit_test(test_budget),
+        cmocka_unit_test(test_play_at_frame),
+        cmocka_unit_test(test_out_of_tune), cmocka_unit_test(test_sleep),     cmocka_unit_test(test_budget),
         cmocka_unit_test(test_param_ramp),    cmocka_unit_test(test_pool_steal), cmocka_unit_test(test_memory),
         cmocka_unit_test(test_virtual),     cmocka_unit_test(test_chord_overflow),
         cmocka_unit_test(test_input_wake),  cmocka_unit_test(test_measured_cost), cmocka_unit_test(test_batch_pool),

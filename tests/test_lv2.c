@@ -11,7 +11,9 @@
  * the voice struck directly through the ABI (state after init, the note's
  * pitch, the .ic scaled by velocity), starting at its frame; two notes
  * must sum; a note-off must damp (and wait for the sustain pedal); a
- * seventeenth note must steal the oldest, which fades out.  Offered a
+ * seventeenth note must steal the oldest, which fades out.  At 1 kHz,
+ * too low a rate for its string, the key is refused at instantiation with
+ * a message.  Offered a
  * worker, the key plays notes from the designs it made, and they must be
  * the same, bit for bit, as the notes it designs as they start.
  *
@@ -287,6 +289,22 @@ static void test_first_note(void **s) {
     }
 }
 
+/* At a rate too low for the key's string at its default pitch, the
+ * plugin refuses to be instantiated and says why, instead of playing out
+ * of tune; at 2 kHz it plays. */
+static void test_rate_too_low(void **s) {
+    (void)s;
+    const char *wav = format("%s/low.wav", dir), *err = format("%s/low.err", dir);
+    assert_int_equal(run("%s %s/lv2/key.lv2 urn:wdc:voice:key %s --rate 1000 --frames 100 2>%s", HOST, dir, wav, err),
+                     1);
+    char *msg = read_file(err, NULL);
+    assert_non_null(msg);
+    print_message("%s", msg);
+    assert_non_null(strstr(msg, "key: a string or tube is too short for its filters at 1000 Hz"));
+    assert_int_equal(run("%s %s/lv2/key.lv2 urn:wdc:voice:key %s --rate 2000 --frames 100 2>%s", HOST, dir, wav, err),
+                     0);
+}
+
 /* Two overlapping notes of different pitch and velocity sum. */
 static void test_two_notes(void **s) {
     (void)s;
@@ -393,7 +411,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_bundles),   cmocka_unit_test(test_validate), cmocka_unit_test(test_lv2apply),
         cmocka_unit_test(test_first_note), cmocka_unit_test(test_two_notes), cmocka_unit_test(test_damper),
-        cmocka_unit_test(test_steal),      cmocka_unit_test(test_worker),
+        cmocka_unit_test(test_steal),      cmocka_unit_test(test_worker), cmocka_unit_test(test_rate_too_low),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -106,6 +106,71 @@ static void test_tuning(void **state) {
     tl_voice_free(&v);
 }
 
+/* wdv_class.tuning: what the loops' designs promise, at the rate and
+ * params in effect: within a cent at f0 = 440 Hz and 48 kHz (a few at
+ * 880 Hz, where partial 12 lies at 10.6 kHz), tens of
+ * cents at 8 kHz (its partials near 4 kHz); INFINITY for a loop too short
+ * for its filters (f0 = 4200 Hz at 8 kHz), whether designed in process or
+ * handed over by prepare and install, and finite again once f0 comes
+ * down; NULL for a voice without strings or tubes. */
+static void test_tuning_reported(void **state) {
+    (void)state;
+    tl_voice v, rc;
+    assert_int_equal(build_text(tune_net, &v), 0);
+    const wdv_class *c = v.cls;
+    assert_non_null(c->tuning);
+    int f0 = tl_param_id(c, "f0");
+    void *st = tl_state_new(c, 48000);
+    double t = c->tuning(st);
+    printf("f0 440 Hz at 48 kHz: %.4f cents\n", t);
+    assert_true(t >= 0 && t < 1);
+    tl_state_free(st);
+    st = tl_state_new(c, 8000);
+    t = c->tuning(st);
+    printf("f0 440 Hz at 8 kHz: %.4f cents (the partials near 4 kHz)\n", t);
+    assert_true(t >= 0 && t < 100);
+    c->set_param(st, f0, 4200);
+    free(render(c, st, 64, 0, 0));
+    printf("f0 4200 Hz at 8 kHz: %g cents\n", c->tuning(st));
+    assert_true(isinf(c->tuning(st)));
+    c->set_param(st, f0, 110);
+    free(render(c, st, 64, 0, 0));
+    printf("f0 110 Hz at 8 kHz: %.4f cents\n", c->tuning(st));
+    assert_true(c->tuning(st) < 100);
+    tl_state_free(st);
+    /* a design made off the audio thread carries its error along: the
+     * same as the one process makes */
+    assert_non_null(c->prepare);
+    void *design = calloc(1, c->design_size), *made = tl_state_new(c, 48000);
+    st = tl_state_new(c, 48000);
+    double p[8];
+    for (int i = 0; i < c->n_params; i++)
+        p[i] = c->get_param(st, i);
+    for (int k = 0; k < 2; k++) {
+        const double fs = k ? 8000 : 48000, to = k ? 4200 : 880;
+        c->init(st, fs);
+        c->init(made, fs);
+        p[f0] = to;
+        c->prepare(fs, p, design);
+        c->install(made, design);
+        c->set_param(made, f0, to);
+        c->set_param(st, f0, to);
+        free(render(c, made, 64, 0, 0));
+        free(render(c, st, 64, 0, 0));
+        printf("f0 %g Hz at %g Hz: %g cents designed in process, %g installed\n", to, fs, c->tuning(st),
+               c->tuning(made));
+        assert_true(c->tuning(made) == c->tuning(st));
+        assert_true(k ? isinf(c->tuning(st)) : c->tuning(st) > 0 && c->tuning(st) < 10);
+    }
+    free(design);
+    tl_state_free(made);
+    tl_state_free(st);
+    tl_voice_free(&v);
+    assert_int_equal(tl_voice_build("netlists/rc_lowpass.wdn", 0, &rc), 0);
+    assert_null(rc.cls->tuning);
+    tl_voice_free(&rc);
+}
+
 /* ---- harmonics of a lossy ideal string ----
  * The loss filter's phase delay falls with frequency; the tuning stage
  * offsets it.  Partials 1..4 within 1 cent of n f0 up to E6 (1318.5 Hz,
@@ -382,7 +447,8 @@ static void test_glide(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_filters_passive), cmocka_unit_test(test_tuning), cmocka_unit_test(test_harmonics),
+        cmocka_unit_test(test_filters_passive), cmocka_unit_test(test_tuning), cmocka_unit_test(test_tuning_reported),
+        cmocka_unit_test(test_harmonics),
         cmocka_unit_test(test_stiffness),
         cmocka_unit_test(test_decay), cmocka_unit_test(test_tube), cmocka_unit_test(test_glide),
     };
