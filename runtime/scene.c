@@ -2464,6 +2464,105 @@ static uint64_t post_due(render *R, uint64_t now, uint64_t until) {
     return until;
 }
 
+/* Sets on st the constant params of ps that the class knows. */
+static void set_consts(const wdv_class *c, void *st, const scparam *ps, int n) {
+    for (int k = 0; k < n; k++)
+        if (ps[k].id >= 0 && !ps[k].val.curve && !ps[k].val.motion)
+            c->set_param(st, ps[k].id, ps[k].val.v);
+}
+
+/* Whether p is a constant that moves a string's or tube's loop. */
+static int moves_loop(const wdv_class *c, const scparam *p) {
+    return p->id >= 0 && !p->val.curve && !p->val.motion && (c->params[p->id].flags & WDV_PARAM_DESIGN);
+}
+
+/* The first of ps that moves a string's or tube's loop, or NULL; the
+ * values of those (by param, NAN where not set) go to key. */
+static const scparam *design_param(const wdv_class *c, const scparam *ps, int n, double *key) {
+    const scparam *d = NULL;
+    for (int i = 0; i < c->n_params; i++)
+        key[i] = NAN;
+    for (int k = 0; k < n; k++)
+        if (moves_loop(c, &ps[k])) {
+            key[ps[k].id] = ps[k].val.v;
+            d = d ? d : &ps[k];
+        }
+    return d;
+}
+
+/* Whether key (n values, NAN alike) is among the nk keys seen. */
+static int key_seen(const double *keys, int nk, const double *key, int n) {
+    for (int j = 0; j < nk; j++) {
+        int same = 1;
+        for (int i = 0; i < n && same; i++)
+            same = keys[j * n + i] == key[i] || (keys[j * n + i] != keys[j * n + i] && key[i] != key[i]);
+        if (same)
+            return 1;
+    }
+    return 0;
+}
+
+/* A voice whose string or tube is too short for its filters at rate fs
+ * (wdv_class.tuning), at its params or with the loop params an event
+ * sets on top of them, would play out of tune: an error at the param (or
+ * the voice).  0, or -1 after printing it. */
+static int check_tuning(const wdrt_scene *S, double fs) {
+    double dummy[1] = {0};
+    const double *in[64];
+    double *out[64];
+    for (int k = 0; k < 64; k++)
+        in[k] = dummy, out[k] = dummy;
+    for (int i = 0; i < S->nvoices; i++) {
+        const scvoice *v = &S->voices[i];
+        const wdv_class *c = v->cls;
+        if (v->tree || !c || !c->tuning || c->n_inputs > 64 || c->n_outputs > 64)
+            continue;
+        void *st = xcalloc(1, c->state_size);
+        /* the loop params' values checked so far: each set once */
+        const int np = c->n_params > 0 ? c->n_params : 1, cap = 1024;
+        double *keys = xcalloc((size_t)cap * (size_t)np, sizeof(double)), *key = xcalloc((size_t)np, sizeof(double));
+        int nk = 0, bad = 0;
+        for (int e = -1; e < S->nev && !bad; e++) {
+            const scparam *ps = v->params, *d = NULL;
+            int n = v->nparams;
+            if (e >= 0) {
+                const scevent *ev = &S->ev[e];
+                if (ev->voice != i || (ev->kind != SE_SET && ev->kind != SE_PLAY))
+                    continue;
+                ps = ev->kind == SE_SET ? &ev->set : ev->sets, n = ev->kind == SE_SET ? 1 : ev->nsets;
+                if (!(d = design_param(c, ps, n, key)) || key_seen(keys, nk, key, np))
+                    continue;
+                if (nk < cap)
+                    memcpy(keys + (size_t)nk++ * (size_t)np, key, sizeof(double) * (size_t)np);
+            }
+            c->init(st, fs);
+            set_consts(c, st, v->params, v->nparams);
+            if (e >= 0)
+                set_consts(c, st, ps, n);
+            c->process(st, in, out, 0);
+            if (!(c->tuning(st) < INFINITY)) {
+                char err[1024];
+                if (d)
+                    sx_error(S->doc, d->at, err, sizeof err,
+                             "with %s = %g, a string or tube of voice %s is too short for its filters at %g Hz and "
+                             "would play out of tune (lower it, or raise the rate)", d->name, d->val.v, v->name, fs);
+                else
+                    sx_error(S->doc, v->at, err, sizeof err,
+                             "a string or tube of voice %s is too short for its filters at %g Hz and would play out "
+                             "of tune (raise the rate)", v->name, fs);
+                fputs(err, stderr);
+                bad = 1;
+            }
+        }
+        free(st);
+        free(keys);
+        free(key);
+        if (bad)
+            return -1;
+    }
+    return 0;
+}
+
 static int render_init(render *R, const wdrt_scene *S, const wdrt_render_opts *o, wdrt_pool_config *pc,
                        double **pv) {
     memset(R, 0, sizeof *R);
@@ -2618,6 +2717,10 @@ wdrt_result wdrt_scene_render(const wdrt_scene *S, const wdrt_render_opts *o, do
     kept keep = {NULL, 0, 0, 0}; /* the frames, kept when the caller gives no sink; freed at done */
     if (render_init(&R, S, o, pc, pv) != 0)
         goto done;
+    if (check_tuning(S, R.fs) != 0) {
+        res = WDRT_OUT_OF_TUNE;
+        goto done;
+    }
     complex_pools(S, pc + S->nvoices, srcs);
     if (sw_build(S, R.fs, &bodies, &tl) != 0) {
         fprintf(stderr, "wdrt: error: the scene's bodies could not be built\n");

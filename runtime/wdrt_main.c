@@ -526,7 +526,11 @@ static int cmd_render(int argc, char **argv) {
         char why[1024];
         snprintf(why, sizeof why, "wdrt: error: %s: the scene could not be rendered (%s)\n", o.scene,
                  wdrt_result_str(rr));
+        if (rr == WDRT_OUT_OF_TUNE) /* said at the scene's line: an error in the scene at this rate */
+            why[0] = '\0';
         status = sink_close(&snk, path, rr == WDRT_OK, why);
+        if (rr == WDRT_OUT_OF_TUNE)
+            status = EXIT_INPUT;
     }
     if (!status && !o.quiet) {
         double pk = snk.peak, wall = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;

@@ -257,6 +257,35 @@ static void test_cli_rate_for_strings(void **s) {
     assert_int_equal(tl_system(cmd), 1);
 }
 
+/* A param event that raises a string's pitch past what the scene's rate
+ * can tune is an error at the param (the voice's tuning, checked before
+ * the render), where it played out of tune: f0 = 3000 at 8 kHz, with the
+ * same voice at f0 = 1000 fine; at 48 kHz both play. */
+static void test_cli_pitch_for_rate(void **s) {
+    (void)s;
+    write_file("pf.wdn", ".voice pf\n.domain mechanical\n.input f\n.param f0 1000 min=20 max=5000 unit=Hz\n"
+                         "string S1 0 0 L=0.3 f0={f0} mu=1m t60=1 taps=p@0.2,o@0.8\nforce F1 p 0 f\n"
+                         ".output vel v(o)\n.end\n");
+    write_file("pf8.wds", "(rate 8000) (length 0.05)\n(voice h \"pf.wdn\" (pool 2))\n"
+                          "(at 0.01 (play h (set f0 1000)))\n(at 0.02 (play h (set f0 3000)))\n");
+    write_file("pf48.wds", "(rate 48000) (length 0.05)\n(voice h \"pf.wdn\" (pool 2))\n"
+                           "(at 0.01 (play h (set f0 1000)))\n(at 0.02 (play h (set f0 3000)))\n");
+    char cmd[8 * PATH_MAX];
+    snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/pf8.wds -o %s/x.wav 2>/dev/null", g_dir, g_dir,
+             g_dir);
+    assert_int_equal(tl_system(cmd), 1);
+    snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/pf8.wds -o %s/x.wav 2>&1 | grep -q "
+             "\"pf8.wds:4:23: error: with f0 = 3000, a string or tube of voice h is too short for its filters at "
+             "8000 Hz and would play out of tune (lower it, or raise the rate)\"", g_dir, g_dir, g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+    snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/pf8.wds -o %s/x.wav 2>&1 | grep -q "
+             "'f0 = 1000'", g_dir, g_dir, g_dir);
+    assert_int_equal(tl_system(cmd), 1);
+    snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/pf48.wds -o %s/x.wav --quiet", g_dir, g_dir,
+             g_dir);
+    assert_int_equal(tl_system(cmd), 0);
+}
+
 /* Without (length), a scene lasts until its last event has rung down:
  * past the last event, ending in silence, and soon after it falls quiet. */
 static void test_rings_down(void **s) {
@@ -661,7 +690,8 @@ static void test_fuzz(void **s) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache), cmocka_unit_test(test_cli_rate_for_strings),   cmocka_unit_test(test_rings_down),
+        cmocka_unit_test(test_matches_wdc), cmocka_unit_test(test_cli_cache), cmocka_unit_test(test_cli_rate_for_strings),
+        cmocka_unit_test(test_cli_pitch_for_rate),   cmocka_unit_test(test_rings_down),
         cmocka_unit_test(test_gain_curve),  cmocka_unit_test(test_load_errors), cmocka_unit_test(test_bind_errors),
         cmocka_unit_test(test_bind_warnings), cmocka_unit_test(test_binaural_rates),
         cmocka_unit_test(test_fuzz),        cmocka_unit_test(test_placed_complex),
