@@ -55,6 +55,7 @@ typedef struct builder {
     size_t *base; /* vertex v's region: slots [base[v], base[v + 1]) */
     int ns;
     int err;      /* out of memory */
+    unsigned long long steps; /* the work done (cx_complex.steps) */
 } builder;
 
 static uint32_t hash_verts(const int *v, int n) {
@@ -85,6 +86,7 @@ static int make_regions(builder *b, int nv, int nf, const int *fo, const int *fv
             b->base[fv[i] + 1] += (size_t)1 << (n - 1 - (i - fo[f]));
     for (int v = 0; v < nv; v++)
         b->base[v + 1] = b->base[v] + b->base[v + 1] + b->base[v + 1] / 2 + 1;
+    b->steps += (unsigned long long)fo[nf] + (unsigned long long)nv;
     b->slot = calloc(b->base[nv] + 1, sizeof *b->slot);
     return b->slot ? 0 : -1;
 }
@@ -111,7 +113,8 @@ static int lookup(builder *b, const int *v, int n, int *made) {
     size_t lo = b->base[v[0]], size = b->base[v[0] + 1] - lo, i = (size_t)(((uint64_t)h * size) >> 32);
     hslot *q;
     *made = 0;
-    for (; (q = &b->slot[lo + i])->id > 0; i = i + 1 == size ? 0 : i + 1)
+    b->steps += (unsigned long long)n;
+    for (; (q = &b->slot[lo + i])->id > 0; i = i + 1 == size ? 0 : i + 1, b->steps++)
         if (q->h == h && same_verts(b, q->id - 1, v, n))
             return q->id - 1;
     int s = b->ns++;
@@ -137,6 +140,7 @@ static void close_down(builder *b, int s, ibuf *stack) {
         memcpy(v, b->vert.p + o, sizeof *v * (size_t)n);
         for (int j = 0; j < n && !b->err; j++) {
             int w[CX_MAX_VERTS], m = 0, made;
+            b->steps += (unsigned long long)n;
             for (int i = 0; i < n; i++)
                 if (i != j)
                     w[m++] = v[i];
@@ -167,6 +171,7 @@ static int make_cofaces(cx_complex *K) {
         for (int j = K->off[s]; j < K->off[s + 1]; j++)
             K->cof[fill[K->face[j]]++] = s;
     free(fill);
+    K->steps += 2 * (unsigned long long)K->off[K->ns] + (unsigned long long)K->ns;
     return 0;
 }
 
@@ -182,6 +187,7 @@ static int finish(cx_complex *K, builder *b) {
     K->dim = 0;
     for (int s = K->nv; s < K->ns; s++)
         K->dim = cx_dim(K, s) > K->dim ? cx_dim(K, s) : K->dim;
+    K->steps += (unsigned long long)K->ns;
     return make_cofaces(K);
 }
 
@@ -202,12 +208,15 @@ static int make_vertices(cx_complex *K, int nl, const long *lab) {
         if (n == 0 || K->label[n - 1] != K->label[i])
             K->label[n++] = K->label[i];
     K->nv = n;
+    K->steps += (unsigned long long)nl; /* and the library's sort */
     return 0;
 }
 
-int cx_vertex(const cx_complex *K, long label) {
+/* The vertex of label (binary search), -1 if none; *steps counts its halvings. */
+static int vertex_of(const cx_complex *K, long label, unsigned long long *steps) {
     int lo = 0, hi = K->nv - 1;
     while (lo <= hi) {
+        ++*steps;
         int mid = lo + (hi - lo) / 2;
         if (K->label[mid] == label)
             return mid;
@@ -219,23 +228,28 @@ int cx_vertex(const cx_complex *K, long label) {
     return -1;
 }
 
-static void sort_ints(int *v, int n) {
+int cx_vertex(const cx_complex *K, long label) {
+    unsigned long long steps = 0;
+    return vertex_of(K, label, &steps);
+}
+
+static void sort_ints(int *v, int n, unsigned long long *steps) {
     for (int i = 1; i < n; i++)
-        for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
+        for (int j = i; j > 0 && v[j - 1] > v[j]; j--, ++*steps) {
             int t = v[j];
             v[j] = v[j - 1], v[j - 1] = t;
         }
 }
 
 /* The facets as vertex ids, each ascending. */
-static int *facet_ids(const cx_complex *K, int nf, const int *fo, const long *lab) {
+static int *facet_ids(cx_complex *K, int nf, const int *fo, const long *lab) {
     int *fv = malloc(sizeof *fv * ((size_t)fo[nf] + 1));
     if (!fv)
         return NULL;
     for (int f = 0; f < nf; f++) {
         for (int i = fo[f]; i < fo[f + 1]; i++)
-            fv[i] = cx_vertex(K, lab[i]);
-        sort_ints(fv + fo[f], fo[f + 1] - fo[f]);
+            fv[i] = vertex_of(K, lab[i], &K->steps);
+        sort_ints(fv + fo[f], fo[f + 1] - fo[f], &K->steps);
     }
     return fv;
 }
@@ -247,6 +261,7 @@ static int add_facets(builder *b, int nf, const int *fo, const int *fv, int *dup
     ibuf listed = {0}, stack = {0};
     for (int f = 0; f < nf && !b->err && *dup < 0; f++) {
         int made, s = lookup(b, fv + fo[f], fo[f + 1] - fo[f], &made);
+        b->steps++;
         while (listed.n <= (size_t)s && !b->err)
             b->err = ib_push(&listed, -1) != 0;
         if (b->err)
@@ -277,6 +292,7 @@ static cx_complex *build(int nf, const int *fo, const long *lab, int *dup, int *
     }
     if (b.err || add_facets(&b, nf, fo, fv, dup, first) || *dup >= 0 || finish(K, &b))
         goto fail;
+    K->steps += b.steps;
     free(fv);
     builder_free(&b);
     return K;
@@ -331,7 +347,8 @@ int cx_find(const cx_complex *K, const int *v, int n) {
     if (n < 1 || n > CX_MAX_VERTS)
         return -1;
     memcpy(w, v, sizeof *w * (size_t)n);
-    sort_ints(w, n);
+    unsigned long long steps = 0;
+    sort_ints(w, n, &steps);
     int s = w[0];
     if (s < 0 || s >= K->nv)
         return -1;
@@ -359,18 +376,20 @@ typedef struct walker {
     int *cur, *nxt;   /* the simplices of this level's nodes, node by node */
     int *dist, *queue, *uf, *usz, *compof, *compv;
     int *slotbase, *count, *cbase, *ccount;
+    unsigned long long steps; /* the work done (cx_tree.steps) */
 } walker;
 
 static int *nodeof(const walker *w, int level) { return w->T->nodeof + (size_t)(level - w->T->leaf) * (size_t)w->K->nv; }
 
-static int find(int *uf, int x) {
-    while (uf[x] != x)
+static int find(walker *w, int x) {
+    int *uf = w->uf;
+    for (; uf[x] != x; w->steps++)
         x = uf[x] = uf[uf[x]];
     return x;
 }
 
 static void unite(walker *w, int a, int b) {
-    a = find(w->uf, a), b = find(w->uf, b);
+    a = find(w, a), b = find(w, b);
     if (a == b)
         return;
     if (w->usz[a] < w->usz[b]) {
@@ -384,6 +403,7 @@ static void unite(walker *w, int a, int b) {
 static void uf_reset(walker *w) {
     for (int v = 0; v < w->K->nv; v++)
         w->uf[v] = v, w->usz[v] = 1, w->compof[v] = 0;
+    w->steps += (unsigned long long)w->K->nv;
 }
 
 static int grow_nodes(walker *w, int n) {
@@ -436,6 +456,7 @@ static void distribute(walker *w, int level, int nb, int ne, const int *from, in
     }
     int *t = w->cur;
     w->cur = w->nxt, w->nxt = t;
+    w->steps += 2 * (unsigned long long)nfrom + 2 * (unsigned long long)(ne - nb);
 }
 
 /* The tops: the complex's components, the start's first, then by their
@@ -449,10 +470,10 @@ static int tops(walker *w, int start) {
         if (cx_dim(K, s) == 1)
             unite(w, K->vert[K->off[s]], K->vert[K->off[s] + 1]);
     if (K->nv)
-        w->compof[find(w->uf, start)] = ++nc;
+        w->compof[find(w, start)] = ++nc;
     for (int v = 0; v < K->nv; v++)
-        if (!w->compof[find(w->uf, v)])
-            w->compof[find(w->uf, v)] = ++nc;
+        if (!w->compof[find(w, v)])
+            w->compof[find(w, v)] = ++nc;
     if (grow_nodes(w, nc))
         return -1;
     for (int c = 0; c < nc; c++) {
@@ -460,13 +481,14 @@ static int tops(walker *w, int start) {
         n->comp = c + 1, n->ncomp = nc;
     }
     for (int v = 0; v < K->nv; v++) {
-        cx_node *n = &T->node[no[v] = w->compof[find(w->uf, v)] - 1];
+        cx_node *n = &T->node[no[v] = w->compof[find(w, v)] - 1];
         n->nverts++;
         if (n->start < 0)
             n->start = n->comp == 1 ? start : v;
     }
     for (int s = 0; s < K->ns; s++)
         w->cur[s] = s, T->lowest[s] = (signed char)d;
+    w->steps += 2 * (unsigned long long)K->ns + 2 * (unsigned long long)K->nv + (unsigned long long)nc;
     distribute(w, d, 0, nc, w->cur, K->ns);
     return 0;
 }
@@ -481,7 +503,7 @@ static int bfs(walker *w, int W, int level) {
     w->queue[tail++] = u;
     while (head < tail) {
         int x = w->queue[head++];
-        for (int c = K->cooff[x]; c < K->cooff[x + 1]; c++) {
+        for (int c = K->cooff[x]; c < K->cooff[x + 1]; c++, w->steps++) {
             int e = K->cof[c], o = K->off[e];
             if (low[e] > level || cx_dim(K, e) != 1)
                 continue;
@@ -509,6 +531,7 @@ static void mark_waves(walker *w, int W, int level) {
             continue;
         }
         int m = w->dist[K->vert[o]], at = 0, cnt = 0;
+        w->steps += (unsigned long long)k;
         for (int j = 0; j < k; j++) {
             int dj = w->dist[K->vert[o + j]];
             if (dj < m)
@@ -519,6 +542,7 @@ static void mark_waves(walker *w, int W, int level) {
         if (k >= 3 && cnt == 1)
             low[K->face[o + at]] = (signed char)(level - 1);
     }
+    w->steps += 2 * (unsigned long long)n;
     for (int i = 0; i < n; i++) {
         int s = sl[i], o = K->off[s];
         if (K->off[s + 1] - o == 2 && low[s] == level - 1)
@@ -537,7 +561,7 @@ static int make_children(walker *w, int pb, int pe, int level) {
         w->slotbase[W - pb] = nslots, nslots += T->node[W].nwaves;
     memset(w->count, 0, sizeof *w->count * (size_t)(nslots + 1));
     for (int v = 0; v < K->nv; v++) {
-        int slot = w->slotbase[up[v] - pb] + w->dist[v], r = find(w->uf, v);
+        int slot = w->slotbase[up[v] - pb] + w->dist[v], r = find(w, v);
         if (!w->compof[r])
             w->compof[r] = ++w->count[slot];
         w->compv[v] = w->compof[r];
@@ -558,6 +582,8 @@ static int make_children(walker *w, int pb, int pe, int level) {
             }
         p->nchild = T->nnodes - p->first;
     }
+    w->steps += 2 * (unsigned long long)K->nv + (unsigned long long)nslots + (unsigned long long)total +
+                (unsigned long long)(pe - pb);
     for (int v = 0; v < K->nv; v++) {
         cx_node *n = &T->node[no[v] = w->cbase[w->slotbase[up[v] - pb] + w->dist[v]] + w->compv[v] - 1];
         n->nverts++;
@@ -575,6 +601,7 @@ static int level_down(walker *w, int level) {
         pb++;
     for (int v = 0; v < w->K->nv; v++)
         w->dist[v] = -1;
+    w->steps += (unsigned long long)w->K->nv;
     uf_reset(w);
     int nfrom = 0;
     for (int W = pb; W < pe; W++) {
@@ -619,6 +646,7 @@ cx_tree *cx_waves(const cx_complex *K, int start) {
     int bad = walker_init(&w, K, T) || K->nv == 0 || tops(&w, start >= 0 && start < K->nv ? start : 0);
     for (int level = T->d - 1; level >= T->leaf && !bad; level--)
         bad = level_down(&w, level);
+    T->steps = w.steps;
     walker_free(&w);
     if (bad) {
         cx_tree_free(T);

@@ -68,6 +68,10 @@ typedef struct cx_complex {
     int *cof;        /* cof[cooff[s] .. cooff[s+1]) */
     int ncoord;      /* coordinates per vertex, 0: none given */
     double *coord;   /* [nv * ncoord] */
+    unsigned long long steps; /* the build's work, counted: hash probes, vertices
+                        copied and compared, faces filed (not the sort of
+                        the labels); linear in ns but for the labels'
+                        binary searches */
 } cx_complex;
 
 static inline int cx_dim(const cx_complex *K, int s) { return K->off[s + 1] - K->off[s] - 1; }
@@ -130,6 +134,9 @@ typedef struct cx_tree {
     signed char *lowest; /* [ns] the lowest level at which a simplex lies
                       in a wave (d: in none below the top); the paper's
                       simplex list */
+    unsigned long long steps; /* the walk's work, counted: cofaces visited,
+                      union-find steps, simplices and vertices passed over
+                      level by level */
 } cx_tree;
 
 /* The tree of waves of K from vertex id `start` (-1: vertex 0, the
