@@ -69,6 +69,8 @@ typedef struct Elab {
     long nelements; /* element lines elaborated, blocks expanded */
     IcSpec **ic_at[2]; /* node -> its .ic v(node) [0] or x(node) [1], or NULL */
     bool have_voice, have_domain, have_rate;
+    double rate_given; /* the voice's rate if the caller gives it (> 0): a .tran step too fine is no
+                          error, and lowering checks against it */
     double temp;    /* a deck's temperature (C): .temp, .options temp= */
     SrcPos endpos;  /* the last line of the main file, for whole-netlist errors */
 } Elab;
@@ -563,12 +565,15 @@ static void dir_simple(Elab *E, Line *l) {
             note_at(l->headpos, "of '%s', the voice takes only the temperature (temp=); the rest is skipped", d);
     } else if (!strcmp(d, ".tran")) { /* a deck's step and length: the render's rate and length */
         double step = lower_const(&l->args[0], "the step of .tran"), stop = lower_const(&l->args[1], "the stop time of .tran");
-        if (!(step > 0) || !(1 / step <= 1e7))
-            error_at(l->args[0].pos, ".tran's step gives a rate of %g Hz; it must be from 1 Hz to 10 MHz", 1 / step);
+        if (!(step > 0))
+            error_at(l->args[0].pos, ".tran's step must be above 0");
+        if (!(1 / step <= 1e7) && !(E->rate_given > 0))
+            error_at(l->args[0].pos, ".tran's step gives a rate of %g Hz; it must be from 1 Hz to 10 MHz (or give the "
+                     "voice's rate with --rate)", 1 / step);
         if (!(stop > 0) || !(stop <= 86400))
             error_at(l->args[1].pos, ".tran's stop time must be above 0 and at most a day");
         c->uic = l->nargs > 2 && l->args[2].kind == VAL_NAME && !strcmp(l->args[2].name, "uic");
-        if (!E->have_rate) /* 10u is 100 kHz, not 99999.99999999999 */
+        if (!E->have_rate && 1 / step <= 1e7) /* 10u is 100 kHz, not 99999.99999999999 */
             c->rate = fabs(1 / step - round(1 / step)) <= 1e-9 / step ? round(1 / step) : 1 / step;
         c->tstop = stop;
     } else if (!strcmp(d, ".voice")) {
@@ -687,7 +692,7 @@ int lower_nelems(Lower *L) { return L->E->elems.len; }
 
 const char *lower_prefix(Lower *L) { return L->S->prefix; }
 
-double lower_rate(Lower *L) { return L->E->c->rate; }
+double lower_rate(Lower *L) { return L->E->rate_given > 0 ? L->E->rate_given : L->E->c->rate; }
 
 void lower_add_mutator(Lower *L, Mutator *m) { vec_push(&L->E->mutators, m); }
 void lower_add_coupling(Lower *L, Coupling *k) { vec_push(&L->E->couplings, k); }
@@ -1723,8 +1728,8 @@ static void finish(Elab *E) {
         c->input_fn[i] = i < E->input_fn.len ? E->input_fn.data[i] : NULL;
 }
 
-static Circuit *elaborate(SrcFile *f) {
-    Elab E = {.temp = 27};
+static Circuit *elaborate(SrcFile *f, double rate) {
+    Elab E = {.temp = 27, .rate_given = rate};
     int lines = 1;
     for (const char *q = f->text; *q; q++)
         lines += *q == '\n' && q[1];
@@ -1796,13 +1801,13 @@ static Circuit *elaborate(SrcFile *f) {
     return c;
 }
 
-static Circuit *load(SrcFile *f) {
+static Circuit *load(SrcFile *f, double rate) {
     jmp_buf jb;
     jmp_buf *saved = diag.jmp;
     diag.jmp = &jb;
     Circuit *c = NULL;
     if (!setjmp(jb))
-        c = elaborate(f);
+        c = elaborate(f, rate);
     diag.jmp = saved;
     return c;
 }
@@ -1810,10 +1815,12 @@ static Circuit *load(SrcFile *f) {
 Circuit *wdc_elaborate_string(const char *name, const char *text) {
     SrcFile *f = srcfile_new(name, arena_strdup(text));
     f->spice = is_spice_path(name);
-    return load(f);
+    return load(f, 0);
 }
 
-Circuit *wdc_elaborate(const char *path) {
+Circuit *wdc_elaborate(const char *path) { return wdc_elaborate_at(path, 0); }
+
+Circuit *wdc_elaborate_at(const char *path, double rate) {
     size_t len;
     char *text = read_file(path, &len);
     if (!text) {
@@ -1837,7 +1844,7 @@ Circuit *wdc_elaborate(const char *path) {
     }
     SrcFile *f = srcfile_new(path, text);
     f->spice = is_spice_path(path);
-    return load(f);
+    return load(f, rate);
 }
 
 const char *domain_unit(Domain d, char fn) {

@@ -2723,6 +2723,15 @@ static void pwl_points(Ctx *x, const Elem *e, int k) {
     }
 }
 
+/* The highest rate a voice's delay lines and waveguides hold their
+ * delays at: four times the netlist's rate or the rate it is compiled
+ * for (--rate), and at least 192 kHz; a host running it faster gets
+ * delays cut to what the lines hold. */
+static double line_rate(Ctx *x) {
+    double top = x->c->rate > x->w->fs ? x->c->rate : x->w->fs;
+    return 4 * top > 192000 ? 4 * top : 192000;
+}
+
 static void index_tree(Ctx *x) {
     const Wdf *w = x->w;
     const Circuit *c = x->c;
@@ -2802,7 +2811,7 @@ static void index_tree(Ctx *x) {
         if (e->peer < i) {
             x->line_of[i] = x->line_of[e->peer];
         } else {
-            double fmax = c->rate * 4 > 192000 ? c->rate * 4 : 192000;
+            double fmax = line_rate(x);
             int need = (int)ceil(e->td * fmax) + 2, size = 1;
             while (size < need)
                 size *= 2;
@@ -2822,7 +2831,7 @@ static void index_tree(Ctx *x) {
     x->wc_off = arena_alloc(sizeof(int) * (size_t)(nw + 1));
     for (int w = 0; w < nw; w++) {
         const Waveguide *g = &c->wgs[w];
-        double fmax = c->rate * 4 > 192000 ? c->rate * 4 : 192000;
+        double fmax = line_rate(x);
         int need = (int)ceil(fmax / g->f0_min / 2) + 4, size = 4;
         while (size < need)
             size *= 2;

@@ -503,6 +503,10 @@ typedef struct Circuit {
  * wg_choose, then wdf_build, come after).  Returns NULL after printing a
  * diagnostic if the netlist has an error. */
 Circuit *wdc_elaborate(const char *path);
+/* The same with the voice's rate given (> 0, as `--rate` gives it): a
+ * deck's .tran step too fine for a voice's rate is then no error, and
+ * sets no rate. */
+Circuit *wdc_elaborate_at(const char *path, double rate);
 /* Same, from text in memory (name is used in diagnostics). */
 Circuit *wdc_elaborate_string(const char *name, const char *text);
 /* wdc_elaborate and wg_choose: a circuit ready for wdf_build, for

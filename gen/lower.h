@@ -49,7 +49,8 @@ Elem *lower_elem(Lower *L, Line *l, ElemKind k, const char *suffix, int n0, int 
 int lower_nelems(Lower *L);
 /* The prefix of names in this scope: "" at top level, "INST." in an instance. */
 const char *lower_prefix(Lower *L);
-/* The default sample rate, Hz. */
+/* The sample rate, Hz: the one the command line gives, else the
+ * netlist's (.rate, a deck's .tran, or 48 kHz). */
 double lower_rate(Lower *L);
 /* Node index of a name in this scope, made if new. */
 int lower_node(Lower *L, const char *name, SrcPos pos);

@@ -865,7 +865,7 @@ static bool choose_orders(Circuit *c, double fs) {
 
 int main(int argc, char **argv) {
     Opts o = parse_args(argc, argv);
-    Circuit *c = wdc_elaborate(o.file);
+    Circuit *c = wdc_elaborate_at(o.file, o.rate);
     if (!c || !choose_orders(c, o.rate))
         return EXIT_NETLIST;
     if (o.dump_elab)

@@ -275,8 +275,42 @@ static void test_exit_status(void **s) {
     assert_int_equal(run("bin/wdc netlists/diode_clipper.wdn --tol 1e-3 --check"), 0);
 }
 
+/* A deck written for ngspice with a fine .tran step renders at the rate
+ * --rate gives (without it, the step is an error that says so), and its
+ * line's delay is checked against that rate and held at it (the line was
+ * sized for 192 kHz and cut 30 samples to 3); the render matches one of
+ * the same deck whose step gives that rate, to the bit. */
+static void test_deck_rate_given(void **s) {
+    (void)s;
+    FILE *f = fopen(format("%s/fine.cir", dir), "w");
+    fprintf(f, "fine step\nV1 in 0 PULSE(0 1 0 1n 1n 20u 40u)\nR1 in a 50\nT1 a 0 b 0 Z0=50 TD=3u\nR2 b 0 50\n"
+               ".tran 10n 100u\n.print tran v(b)\n.end\n");
+    fclose(f);
+    f = fopen(format("%s/coarse.cir", dir), "w");
+    fprintf(f, "coarse step\nV1 in 0 PULSE(0 1 0 1n 1n 20u 40u)\nR1 in a 50\nT1 a 0 b 0 Z0=50 TD=3u\nR2 b 0 50\n"
+               ".tran 0.1u 100u\n.print tran v(b)\n.end\n");
+    fclose(f);
+    assert_int_equal(run("bin/wdc %s/fine.cir --check 2>%s/fine.err", dir, dir), 1);
+    size_t n;
+    char *err = read_file(format("%s/fine.err", dir), &n); /* the compiler's arena: not freed */
+    assert_non_null(strstr(err, "fine.cir:6:7: error: .tran's step gives a rate of 1e+08 Hz; it must be from 1 Hz to "
+                                "10 MHz (or give the voice's rate with --rate)"));
+    assert_int_equal(run("bin/wdc %s/fine.cir --check --rate 1e7", dir), 0);
+    assert_int_equal(run("bin/wdc %s/fine.cir --check --rate 1e5 2>%s/fine.err", dir, dir), 1);
+    err = read_file(format("%s/fine.err", dir), &n);
+    assert_non_null(strstr(err, "fine.cir:4:21: error: TD = 3e-06 s is shorter than half a sample at 100000 Hz"));
+    assert_int_equal(run("bin/wdc %s/fine.cir -o %s --render %s/fine.csv --rate 1e7", dir, dir, dir), 0);
+    assert_int_equal(run("bin/wdc %s/coarse.cir -o %s --render %s/coarse.csv", dir, dir, dir), 0);
+    size_t na, nb;
+    char *a = read_file(format("%s/fine.csv", dir), &na), *b = read_file(format("%s/coarse.csv", dir), &nb);
+    assert_true(a && b && na > 1000);
+    assert_int_equal(na, nb);
+    assert_memory_equal(a, b, na);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_deck_rate_given),
         cmocka_unit_test(test_render_csv_wav), cmocka_unit_test(test_wav_input_and_rate),
         cmocka_unit_test(test_wav_replaced_whole),
         cmocka_unit_test(test_events),         cmocka_unit_test(test_strike_event),

@@ -776,8 +776,10 @@ static void test_deck(void **state) {
     expect_deck_error("title\nV1 a 0 PWL(0 0 1m)\nR1 a 0 1k\n.end\n", "t.cir:2:11: error: pwl(...) takes time, value pairs");
     expect_deck_error("title\nV1 a 0 SIN(0 1)\nR1 a 0 1k\n.end\n", "t.cir:2:11: error: sin(...) needs at least 3 values");
     expect_deck_error("title\nR1 a 0 'rv\n.end\n", "t.cir:2:8: error: unterminated quote: expected ' on the same line");
-    expect_deck_error("title\nV1 a 0 1\nR1 a 0 1k\n.tran 0 1\n.end\n",
-                      "t.cir:4:7: error: .tran's step gives a rate of inf Hz; it must be from 1 Hz to 10 MHz");
+    expect_deck_error("title\nV1 a 0 1\nR1 a 0 1k\n.tran 0 1\n.end\n", "t.cir:4:7: error: .tran's step must be above 0");
+    expect_deck_error("title\nV1 a 0 1\nR1 a 0 1k\n.tran 10n 1u\n.end\n",
+                      "t.cir:4:7: error: .tran's step gives a rate of 1e+08 Hz; it must be from 1 Hz to 10 MHz (or give "
+                      "the voice's rate with --rate)");
     expect_deck_error("title\n.control\nrun\n", "t.cir:2:1: error: '.control' without '.endc'");
     /* an '.endc' inside a line does not end it (the reader ran past the end of the deck: the fuzzer's find) */
     expect_deck_error("title\nV1 in 0 1\nR1 in out 1k\nC1 out 0 1u\n.control\nrun\n}1-4*.endc\n.print tran v(out)\n",
