@@ -3723,7 +3723,7 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
                                   "    double e = 0;\n"
                                   "    for (int w = 0; w < N_WG; w++)\n"
                                   "        e = st->c_werr[w] > e ? st->c_werr[w] : e;\n"
-                                  "    return e < WG_TOO_SHORT ? e : INFINITY;\n}\n\n" : "");
+                                  "    return e < WG_UNTUNABLE ? e : INFINITY;\n}\n\n" : "");
     set(t, "tuning_entry", x->c->nwgs ? "voice_tuning" : "NULL");
 }
 

@@ -2502,7 +2502,7 @@ static int key_seen(const double *keys, int nk, const double *key, int n) {
     return 0;
 }
 
-/* A voice whose string or tube is too short for its filters at rate fs
+/* A voice whose string or tube cannot be tuned at rate fs
  * (wdv_class.tuning), at its params or with the loop params an event
  * sets on top of them, would play out of tune: an error at the param (or
  * the voice).  0, or -1 after printing it. */
@@ -2544,12 +2544,13 @@ static int check_tuning(const wdrt_scene *S, double fs) {
                 char err[1024];
                 if (d)
                     sx_error(S->doc, d->at, err, sizeof err,
-                             "with %s = %g, a string or tube of voice %s is too short for its filters at %g Hz and "
-                             "would play out of tune (lower it, or raise the rate)", d->name, d->val.v, v->name, fs);
+                             "with %s = %g, a string or tube of voice %s cannot be tuned at %g Hz: its loop is too "
+                             "short for its filters there, and would play out of tune (lower it, or raise the rate)",
+                             d->name, d->val.v, v->name, fs);
                 else
                     sx_error(S->doc, v->at, err, sizeof err,
-                             "a string or tube of voice %s is too short for its filters at %g Hz and would play out "
-                             "of tune (raise the rate)", v->name, fs);
+                             "a string or tube of voice %s cannot be tuned at %g Hz, and would play out of tune "
+                             "(its loop too short for its filters there, or longer than its lines hold)", v->name, fs);
                 fputs(err, stderr);
                 bad = 1;
             }

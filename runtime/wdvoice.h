@@ -132,9 +132,11 @@ typedef struct wdv_class {
      * to: the largest error of the first twelve partials of any of them,
      * in cents, as their loops are designed at the rate and params in
      * effect (those of init, or of the last process call).  INFINITY where
-     * a loop is too short for its filters at that rate (its f0 too high
-     * for the rate): that voice plays out of tune, and a host should say
-     * so or choose a higher rate.  NULL: the voice has no string or tube. */
+     * a loop cannot be tuned at that rate: too short for its filters (its
+     * f0 too high for the rate), or, at a rate far above the one the voice
+     * was compiled for, longer than its lines hold.  That voice plays out
+     * of tune, and a host should say so or choose another rate.  NULL: the
+     * voice has no string or tube. */
     double (*tuning)(const void *state);
 } wdv_class;
 

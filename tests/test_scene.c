@@ -275,8 +275,9 @@ static void test_cli_pitch_for_rate(void **s) {
              g_dir);
     assert_int_equal(tl_system(cmd), 1);
     snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/pf8.wds -o %s/x.wav 2>&1 | grep -q "
-             "\"pf8.wds:4:23: error: with f0 = 3000, a string or tube of voice h is too short for its filters at "
-             "8000 Hz and would play out of tune (lower it, or raise the rate)\"", g_dir, g_dir, g_dir);
+             "\"pf8.wds:4:23: error: with f0 = 3000, a string or tube of voice h cannot be tuned at 8000 Hz: its "
+             "loop is too short for its filters there, and would play out of tune (lower it, or raise the rate)\"",
+             g_dir, g_dir, g_dir);
     assert_int_equal(tl_system(cmd), 0);
     snprintf(cmd, sizeof cmd, "WDRT_CACHE=%s/cache bin/wdrt render %s/pf8.wds -o %s/x.wav 2>&1 | grep -q "
              "'f0 = 1000'", g_dir, g_dir, g_dir);

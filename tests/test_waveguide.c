@@ -112,7 +112,9 @@ static void test_tuning(void **state) {
  * cents at 8 kHz (its partials near 4 kHz); INFINITY for a loop too short
  * for its filters (f0 = 4200 Hz at 8 kHz), whether designed in process or
  * handed over by prepare and install, and finite again once f0 comes
- * down; NULL for a voice without strings or tubes. */
+ * down; INFINITY also for a low string at 1 MHz, longer than the lines
+ * the voice holds (made for 192 kHz); NULL for a voice without strings or
+ * tubes. */
 static void test_tuning_reported(void **state) {
     (void)state;
     tl_voice v, rc;
@@ -137,6 +139,18 @@ static void test_tuning_reported(void **state) {
     free(render(c, st, 64, 0, 0));
     printf("f0 110 Hz at 8 kHz: %.4f cents\n", c->tuning(st));
     assert_true(c->tuning(st) < 100);
+    tl_state_free(st);
+    /* far above the rate its lines were made for (four times 48 kHz), a
+     * low string's loop is longer than they hold; a high one still fits */
+    st = tl_state_new(c, 1e6);
+    c->set_param(st, f0, 27.5);
+    free(render(c, st, 64, 0, 0));
+    printf("f0 27.5 Hz at 1 MHz: %g cents\n", c->tuning(st));
+    assert_true(isinf(c->tuning(st)));
+    c->set_param(st, f0, 880);
+    free(render(c, st, 64, 0, 0));
+    printf("f0 880 Hz at 1 MHz: %g cents\n", c->tuning(st));
+    assert_true(c->tuning(st) < 1);
     tl_state_free(st);
     /* a design made off the audio thread carries its error along: the
      * same as the one process makes */
