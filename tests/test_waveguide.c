@@ -115,6 +115,15 @@ static void test_tuning(void **state) {
  * down; INFINITY also for a low string at 1 MHz, longer than the lines
  * the voice holds (made for 192 kHz); NULL for a voice without strings or
  * tubes. */
+/* The voice's tuning (at rate fs) once f0 (param id) is set to hz and a
+ * block played. */
+static double tuned(const wdv_class *c, void *st, double fs, int id, double hz) {
+    c->set_param(st, id, hz);
+    free(render(c, st, 64, 0, 0));
+    printf("f0 %g Hz at %g Hz: %g cents\n", hz, fs, c->tuning(st));
+    return c->tuning(st);
+}
+
 static void test_tuning_reported(void **state) {
     (void)state;
     tl_voice v, rc;
@@ -131,26 +140,14 @@ static void test_tuning_reported(void **state) {
     t = c->tuning(st);
     printf("f0 440 Hz at 8 kHz: %.4f cents (the partials near 4 kHz)\n", t);
     assert_true(t >= 0 && t < 100);
-    c->set_param(st, f0, 4200);
-    free(render(c, st, 64, 0, 0));
-    printf("f0 4200 Hz at 8 kHz: %g cents\n", c->tuning(st));
-    assert_true(isinf(c->tuning(st)));
-    c->set_param(st, f0, 110);
-    free(render(c, st, 64, 0, 0));
-    printf("f0 110 Hz at 8 kHz: %.4f cents\n", c->tuning(st));
-    assert_true(c->tuning(st) < 100);
+    assert_true(isinf(tuned(c, st, 8000, f0, 4200)));
+    assert_true(tuned(c, st, 8000, f0, 110) < 100);
     tl_state_free(st);
     /* far above the rate its lines were made for (four times 48 kHz), a
      * low string's loop is longer than they hold; a high one still fits */
     st = tl_state_new(c, 1e6);
-    c->set_param(st, f0, 27.5);
-    free(render(c, st, 64, 0, 0));
-    printf("f0 27.5 Hz at 1 MHz: %g cents\n", c->tuning(st));
-    assert_true(isinf(c->tuning(st)));
-    c->set_param(st, f0, 880);
-    free(render(c, st, 64, 0, 0));
-    printf("f0 880 Hz at 1 MHz: %g cents\n", c->tuning(st));
-    assert_true(c->tuning(st) < 1);
+    assert_true(isinf(tuned(c, st, 1e6, f0, 27.5)));
+    assert_true(tuned(c, st, 1e6, f0, 880) < 1);
     tl_state_free(st);
     /* a design made off the audio thread carries its error along: the
      * same as the one process makes */
