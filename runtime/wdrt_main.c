@@ -273,6 +273,13 @@ static int cached_voice(const char *netlist, const char *wdc, double rate, wdrt_
     const char *cc = getenv("CC");
     hash_bytes(&h, cc ? cc : "cc", strlen(cc ? cc : "cc"));
     hash_bytes(&h, VOICE_CFLAGS, strlen(VOICE_CFLAGS));
+    /* a voice holds its delays up to four times its netlist's rate and
+     * 192 kHz at least; above that it is built for the rate it runs at */
+    char rarg[64] = "";
+    if (rate > 192000) {
+        snprintf(rarg, sizeof rarg, "%.17g", rate);
+        hash_bytes(&h, rarg, strlen(rarg));
+    }
     char dir[PATH_MAX], name[256], so[PATH_MAX + 300];
     snprintf(dir, sizeof dir, "%s/%016llx", root, (unsigned long long)h.h);
     if (find_ext(dir, ".so", name, sizeof name) != 0) {
@@ -283,7 +290,7 @@ static int cached_voice(const char *netlist, const char *wdc, double rate, wdrt_
             return EXIT_TOOL;
         }
         /* --batch: the engine renders a pool's voices side by side */
-        char *argv[] = {(char *)wdc, (char *)netlist, "-o", tmp, "--batch", NULL};
+        char *argv[] = {(char *)wdc, (char *)netlist, "-o", tmp, "--batch", rarg[0] ? "--rate" : NULL, rarg, NULL};
         int status = 0;
         if (wdrt_spawn(argv, STDERR_FILENO, &status) != WDRT_OK || status != 0) {
             remove_dir(tmp);
