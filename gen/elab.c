@@ -1833,11 +1833,8 @@ Circuit *wdc_elaborate_at(const char *path, double rate) {
         diag.errors++;
         return NULL;
     }
-    if (strlen(text) != len) {
-        int line = 1, col = 1;
-        for (const char *q = text; *q; q++, col++)
-            if (*q == '\n')
-                line++, col = 0;
+    int line, col;
+    if (text_nul(text, len, &line, &col)) {
         fprintf(diag.out ? diag.out : stderr, "%s:%d:%d: error: the file contains a NUL byte\n", path, line, col);
         diag.errors++;
         return NULL;

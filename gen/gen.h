@@ -93,6 +93,8 @@ char *read_file(const char *path, size_t *len);
  * regular file", "is larger than 16 MiB"), or NULL for an error of the
  * system (no such file, no permission). */
 const char *read_file_refused(int err);
+/* If text (len bytes) holds a NUL byte: true, with its line and column. */
+bool text_nul(const char *text, size_t len, int *line, int *col);
 
 void error_at(SrcPos pos, const char *fmt, ...)
     __attribute__((format(printf, 2, 3), noreturn));

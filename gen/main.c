@@ -408,13 +408,19 @@ static bool ev_line(const EventCtx *x, int line, char *text, Event *e) {
  * is compiled; errors print FILE:LINE:COL, the line and a caret, and exit 1.
  * Returns the events sorted by frame (arena). */
 static Event *read_events(const char *path, EventCtx *x, int *nev) {
-    char *text = read_file(path, NULL);
+    size_t len;
+    int nline, ncol;
+    char *text = read_file(path, &len);
     if (!text) {
         int e = errno;
         const char *why = read_file_refused(e);
         fprintf(stderr, "wdc: error: cannot read events file '%s': %s%s\n", path, why ? "it " : "",
                 why ? why : strerror(e));
         exit(EXIT_USAGE);
+    }
+    if (text_nul(text, len, &nline, &ncol)) { /* what follows would be lost without a word */
+        fprintf(stderr, "%s:%d:%d: error: the file contains a NUL byte\n", path, nline, ncol);
+        exit(EXIT_NETLIST);
     }
     x->file = srcfile_new(path, text);
     Event *ev = arena_alloc(sizeof(Event));

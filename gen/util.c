@@ -84,6 +84,16 @@ const char *read_file_refused(int err) {
  * anything but a regular file (a device such as /dev/zero, a FIFO, a
  * directory: none has an end worth waiting for), EFBIG for a larger file,
  * or the error of stat, fopen or fread. */
+bool text_nul(const char *text, size_t len, int *line, int *col) {
+    if (strlen(text) == len)
+        return false;
+    *line = 1, *col = 1;
+    for (const char *q = text; *q; q++, ++*col)
+        if (*q == '\n')
+            ++*line, *col = 0;
+    return true;
+}
+
 char *read_file(const char *path, size_t *len) {
     struct stat st;
     if (stat(path, &st) != 0)

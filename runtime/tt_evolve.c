@@ -1077,13 +1077,20 @@ static int read_ratings(evo *e, int g) {
         if (tty)
             fprintf(stderr, "generation %d: rate the %d sounds of %s/gen-%03d (%d numbers, higher is better): ", g,
                     e->npop, e->o->dir, g, e->npop);
-        if (getline(&line, &cap, e->rf) < 0) {
+        ssize_t n = getline(&line, &cap, e->rf);
+        if (n < 0) {
             fprintf(stderr, "%s: error: no ratings for generation %d (a line of %d numbers a generation)\n", e->rname,
                     g, e->npop);
             st = EXIT_INPUT;
             break;
         }
         e->rline++;
+        if (strlen(line) != (size_t)n) { /* what follows the NUL would be lost without a word */
+            fprintf(stderr, "%s:%d:%d: error: the line contains a NUL byte\n", e->rname, e->rline,
+                    (int)strlen(line) + 1);
+            st = EXIT_INPUT;
+            break;
+        }
         st = parse_ratings(e, line);
         if (st > 0 && tty)
             st = -1;

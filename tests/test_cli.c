@@ -220,6 +220,16 @@ static void test_events(void **s) {
     assert_non_null(fgets(line, sizeof line, f));
     fclose(f);
     assert_string_equal(line, format("%s/bad.txt:2:9: error: unknown param 'Q'\n", dir));
+    /* a NUL byte is an error at its place: the lines after it were lost */
+    f = fopen(format("%s/nul.txt", dir), "w");
+    fwrite("0.1 set R 1k\n0.2\0 set Q 3\n", 1, 27, f);
+    fclose(f);
+    assert_int_equal(run("bin/wdc netlists/rc_lowpass.wdn -o %s --render %s/e.wav --events %s/nul.txt 2>%s/err.txt",
+                         dir, dir, dir, dir), 1);
+    f = fopen(format("%s/err.txt", dir), "r");
+    assert_non_null(fgets(line, sizeof line, f));
+    fclose(f);
+    assert_string_equal(line, format("%s/nul.txt:2:4: error: the file contains a NUL byte\n", dir));
 }
 
 /* A strike event sets a mass's velocity on top of the running state. */

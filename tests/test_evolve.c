@@ -566,6 +566,18 @@ static void test_ratings(void **s) {
     snprintf(want, sizeof want, "%s:1:5: error: a rating is a number >= 0", bad);
     assert_non_null(strstr(o.err, want));
     outcome_free(&o);
+    /* a NUL byte, which cut the line short and left the rest unread */
+    bad = tl_write_file(g_dir, "nul-ratings.txt", "1 2 3 4\n");
+    FILE *nf = fopen(bad, "a");
+    assert_non_null(nf);
+    fwrite("1 2\0 3 4\n", 1, 9, nf);
+    fclose(nf);
+    o = evolve(seed, "--ratings", bad, "--population", "4", "--generations", "2", "--seconds", "0.1", "--seed", "1",
+               "-o", dir, "--quiet", NULL);
+    assert_int_equal(o.status, 1);
+    snprintf(want, sizeof want, "%s:2:4: error: the line contains a NUL byte", bad);
+    assert_non_null(strstr(o.err, want));
+    outcome_free(&o);
     /* no ratings file: standard input, here empty */
     o = evolve(seed, "--population", "4", "--seconds", "0.1", "--seed", "1", "-o", dir, "--quiet", NULL);
     assert_int_equal(o.status, 1);
