@@ -257,8 +257,8 @@ static bool is_wav(const char *spec) {
     return n > 4 && !strcasecmp(spec + n - 4, ".wav");
 }
 
-/* The first channel of a WAV input, which must be at the render's rate
- * and hold only finite samples. */
+/* The first channel of a WAV input (a note says so where it has more),
+ * which must be at the render's rate and hold only finite samples. */
 static Signal read_wav_input(const char *path, double fs) {
     int nch;
     double wfs, *frames;
@@ -268,7 +268,10 @@ static Signal read_wav_input(const char *path, double fs) {
         exit(EXIT_USAGE);
     }
     if (fabs(wfs - fs) > 0.5)
-        usage_error("input file rate differs from the render rate (%s)", format("%g Hz vs %g Hz", wfs, fs));
+        usage_error("input file rate differs from the render rate (%s)",
+                    format("%g Hz vs %g Hz; --rate %g renders at the file's", wfs, fs, wfs));
+    if (nch > 1)
+        fprintf(stderr, "wdc: note: input '%s' has %d channels; the voice's input takes the first\n", path, nch);
     Signal s = {.kind = 'w', .data = checked_calloc((size_t)nf + 1, sizeof(double), format("input '%s'", path)), .n = nf};
     for (long i = 0; i < nf; i++) {
         s.data[i] = frames[i * nch];
@@ -483,6 +486,9 @@ static void render_prepare(const Opts *o, const Circuit *c, double fs, Render *r
                 n = rd->in[k].n;
                 tmax = (double)n / fs;
                 why = format("the end of the render, which '%s' sets", o->inputs[k]);
+                if (n == 0)
+                    usage_error("input '%s' holds no frames, and sets the render's length: give --seconds",
+                                o->inputs[k]);
             }
         }
     if (o->events) {
