@@ -257,8 +257,9 @@ static bool is_wav(const char *spec) {
     return n > 4 && !strcasecmp(spec + n - 4, ".wav");
 }
 
-/* The first channel of a WAV input (a note says so where it has more),
- * which must be at the render's rate and hold only finite samples. */
+/* A WAV input, its channels averaged as the runtime's sound files are (a
+ * note says so), which must be at the render's rate and hold only finite
+ * samples. */
 static Signal read_wav_input(const char *path, double fs) {
     int nch;
     double wfs, *frames;
@@ -271,10 +272,13 @@ static Signal read_wav_input(const char *path, double fs) {
         usage_error("input file rate differs from the render rate (%s)",
                     format("%g Hz vs %g Hz; --rate %g renders at the file's", wfs, fs, wfs));
     if (nch > 1)
-        fprintf(stderr, "wdc: note: input '%s' has %d channels; the voice's input takes the first\n", path, nch);
+        fprintf(stderr, "wdc: note: input '%s' has %d channels; the voice's input takes their mean\n", path, nch);
     Signal s = {.kind = 'w', .data = checked_calloc((size_t)nf + 1, sizeof(double), format("input '%s'", path)), .n = nf};
     for (long i = 0; i < nf; i++) {
-        s.data[i] = frames[i * nch];
+        double m = 0;
+        for (int k = 0; k < nch; k++)
+            m += frames[i * nch + k];
+        s.data[i] = m / nch;
         if (!isfinite(s.data[i]))
             usage_error("%s", format("input '%s' holds a non-finite sample at frame %ld", path, i));
     }
