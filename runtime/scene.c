@@ -1904,6 +1904,11 @@ static int bind_voice(wdrt_scene *S, int i, const wdv_class *cls) {
     v->cls = cls;
     if (cls->n_outputs == 0)
         return ERR(v->at, "voice %s has no output to hear", cls->name) ? WDRT_SYNTAX : WDRT_SYNTAX;
+    if (cls->n_inputs > 0) /* a scene drives no voice's inputs; a body drives its voice's force input */
+        sx_warning(S->doc, v->at, S->err, S->errlen, "nothing in a scene drives the input%s '%s'%s of voice %s%s",
+                   cls->n_inputs > 1 ? "s" : "", cls->inputs[0].name, cls->n_inputs > 1 ? ", ..." : "", cls->name,
+                   cls->n_ic_targets ? ": it sounds only when struck"
+                                     : ", and it has nothing to strike: it stays silent");
     v->output = 0;
     if (v->out_name) {
         const char *names[64];

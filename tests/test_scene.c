@@ -567,6 +567,23 @@ static void test_bind_warnings(void **s) {
     assert_string_equal(err, want);
     wdrt_scene_free(sc);
     free((void *)path);
+    /* a voice with inputs, which nothing in a scene drives: one that can
+     * be struck, and one that cannot and so stays silent */
+    static const char *const nets[2] = {"netlists/rc_lowpass.wdn", "netlists/tonestack.wdn"};
+    static const char *const says[2] = {": it sounds only when struck", ", and it has nothing to strike: it stays silent"};
+    for (int k = 0; k < 2; k++) {
+        tl_voice v;
+        assert_int_equal(tl_voice_build(nets[k], 0, &v), 0);
+        path = strdup(write_file("in.wds", "(length 0.1)\n(voice fx \"x.wdn\")\n"));
+        assert_int_equal(wdrt_scene_load(path, &sc, err, sizeof err), WDRT_OK);
+        assert_int_equal(wdrt_scene_bind(sc, 0, v.cls, err, sizeof err), WDRT_OK);
+        snprintf(want, sizeof want, "%s:2:8: warning: nothing in a scene drives the input 'in' of voice %s%s\n", path,
+                 v.cls->name, says[k]);
+        assert_non_null(strstr(err, want));
+        wdrt_scene_free(sc);
+        free((void *)path);
+        tl_voice_free(&v);
+    }
 }
 
 /* ---- fuzz ---- */
