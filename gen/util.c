@@ -79,11 +79,6 @@ const char *read_file_refused(int err) {
     return NULL;
 }
 
-/* Reads a whole regular file of at most MAX_FILE_BYTES into the arena,
- * NUL-terminated.  Returns NULL with errno set if it cannot: EINVAL for
- * anything but a regular file (a device such as /dev/zero, a FIFO, a
- * directory: none has an end worth waiting for), EFBIG for a larger file,
- * or the error of stat, fopen or fread. */
 bool text_nul(const char *text, size_t len, int *line, int *col) {
     if (strlen(text) == len)
         return false;
@@ -94,6 +89,11 @@ bool text_nul(const char *text, size_t len, int *line, int *col) {
     return true;
 }
 
+/* Reads a whole regular file of at most MAX_FILE_BYTES into the arena,
+ * NUL-terminated.  Returns NULL with errno set if it cannot: EINVAL for
+ * anything but a regular file (a device such as /dev/zero, a FIFO, a
+ * directory: none has an end worth waiting for), EFBIG for a larger file,
+ * or the error of stat, fopen or fread. */
 char *read_file(const char *path, size_t *len) {
     struct stat st;
     if (stat(path, &st) != 0)
