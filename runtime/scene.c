@@ -2510,7 +2510,9 @@ static int key_seen(const double *keys, int nk, const double *key, int n) {
 /* A voice whose string or tube cannot be tuned at rate fs
  * (wdv_class.tuning), at its params or with the loop params an event
  * sets on top of them, would play out of tune: an error at the param (or
- * the voice).  0, or -1 after printing it. */
+ * the voice).  wdrt builds a voice for a rate its lines would not hold,
+ * so what cannot be tuned here is a loop too short for its filters.  0,
+ * or -1 after printing it. */
 static int check_tuning(const wdrt_scene *S, double fs) {
     double dummy[1] = {0};
     const double *in[64];
@@ -2554,8 +2556,8 @@ static int check_tuning(const wdrt_scene *S, double fs) {
                              d->name, d->val.v, v->name, fs);
                 else
                     sx_error(S->doc, v->at, err, sizeof err,
-                             "a string or tube of voice %s cannot be tuned at %g Hz, and would play out of tune "
-                             "(its loop too short for its filters there, or longer than its lines hold)", v->name, fs);
+                             "a string or tube of voice %s cannot be tuned at %g Hz: its loop is too short for its "
+                             "filters there, and would play out of tune (raise the rate)", v->name, fs);
                 fputs(err, stderr);
                 bad = 1;
             }
