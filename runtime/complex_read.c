@@ -540,8 +540,8 @@ cx_complex *cx_parse(const char *path, const char *text, size_t len, const char 
     reader R;
     memset(&R, 0, sizeof R);
     R.path = path ? path : "<string>";
-    if (len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3)) /* a UTF-8 byte-order mark, as editors on Windows write */
-        text += 3, len -= 3;
+    size_t bom = sx_bom(text, len);
+    text += bom, len -= bom;
     R.src = text, R.len = len, R.line = R.col = 1;
     R.doc.path = R.path, R.doc.src = text, R.doc.srclen = len;
     R.err = err, R.errlen = errlen, R.want = name;

@@ -2469,16 +2469,15 @@ static uint64_t post_due(render *R, uint64_t now, uint64_t until) {
     return until;
 }
 
-/* Sets on st the constant params of ps that the class knows. */
+/* Whether p is a param the class knows, set to a number (not a curve or
+ * a motion). */
+static int constant(const scparam *p) { return p->id >= 0 && !p->val.curve && !p->val.motion; }
+
+/* Sets on st the constant params of ps. */
 static void set_consts(const wdv_class *c, void *st, const scparam *ps, int n) {
     for (int k = 0; k < n; k++)
-        if (ps[k].id >= 0 && !ps[k].val.curve && !ps[k].val.motion)
+        if (constant(&ps[k]))
             c->set_param(st, ps[k].id, ps[k].val.v);
-}
-
-/* Whether p is a constant that moves a string's or tube's loop. */
-static int moves_loop(const wdv_class *c, const scparam *p) {
-    return p->id >= 0 && !p->val.curve && !p->val.motion && (c->params[p->id].flags & WDV_PARAM_DESIGN);
 }
 
 /* The first of ps that moves a string's or tube's loop, or NULL; the
@@ -2488,7 +2487,7 @@ static const scparam *design_param(const wdv_class *c, const scparam *ps, int n,
     for (int i = 0; i < c->n_params; i++)
         key[i] = NAN;
     for (int k = 0; k < n; k++)
-        if (moves_loop(c, &ps[k])) {
+        if (constant(&ps[k]) && (c->params[ps[k].id].flags & WDV_PARAM_DESIGN)) {
             key[ps[k].id] = ps[k].val.v;
             d = d ? d : &ps[k];
         }
@@ -2500,7 +2499,7 @@ static int key_seen(const double *keys, int nk, const double *key, int n) {
     for (int j = 0; j < nk; j++) {
         int same = 1;
         for (int i = 0; i < n && same; i++)
-            same = keys[j * n + i] == key[i] || (keys[j * n + i] != keys[j * n + i] && key[i] != key[i]);
+            same = keys[j * n + i] == key[i] || (isnan(keys[j * n + i]) && isnan(key[i]));
         if (same)
             return 1;
     }

@@ -705,11 +705,16 @@ static int document(Parser *P)
 
 /* ---- documents --------------------------------------------------------- */
 
-/* An empty doc holding copies of path and text, or NULL. */
+size_t sx_bom(const char *text, size_t len)
+{
+    return len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3) ? 3 : 0;
+}
+
+/* An empty doc holding copies of path and text (after a byte-order mark), or NULL. */
 static sx_doc *doc_new(const char *path, const char *text, size_t len)
 {
-    if (len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3)) /* a UTF-8 byte-order mark, as editors on Windows write */
-        text += 3, len -= 3;
+    size_t bom = sx_bom(text, len);
+    text += bom, len -= bom;
     sx_doc *d = SX_MALLOC(sizeof *d);
     if (!d)
         return NULL;

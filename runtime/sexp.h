@@ -102,6 +102,11 @@ SX_HIDDEN int sx_file_ok(const char *path);
  * regular file") and EFBIG (the bound). */
 SX_HIDDEN const char *sx_file_strerror(int e);
 
+/* The length of a UTF-8 byte-order mark (as editors on Windows write) at
+ * the start of text (len bytes): 3, or 0 where there is none.  The
+ * readers skip it, and count columns after it. */
+SX_HIDDEN size_t sx_bom(const char *text, size_t len);
+
 /* Frees the doc and every node and text of it.  NULL is ignored. */
 SX_HIDDEN void sx_free(sx_doc *d);
 

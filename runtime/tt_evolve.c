@@ -1036,8 +1036,8 @@ static int next_generation(evo *e, int g) {
 /* One line of ratings: 0, -1 if it holds none (blank, a # comment), or
  * EXIT_INPUT after saying what is wrong. */
 static int parse_ratings(evo *e, const char *line) {
-    if (e->rline == 1 && !strncmp(line, "\xef\xbb\xbf", 3)) /* a byte-order mark, as editors on Windows write */
-        line += 3;
+    if (e->rline == 1)
+        line += sx_bom(line, strlen(line));
     const char *sep = " \t\r\n,", *p = line + strspn(line, sep);
     if (!*p || *p == '#')
         return -1;
