@@ -2883,6 +2883,10 @@ static const struct {
               " * its ports out of their junction */\n"
               "static double tapon(double x) { return x > 0 && x < 1 ? 1 : 1e-9; }\n"},
     {"flush", "static real flush(real x) { return x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
+    {"flush_lane", "/* flush(x) in a lane whose run ends here (f is 1), x in the others (f is 0):\n"
+                   " * the same test in every lane, on a flag of x's type, so that a loop over the\n"
+                   " * lanes is vectorised */\n"
+                   "static real flush_lane(real f, real x) { return f != 0 && x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
     {"lu_factor", tmpl_lu},
     {"retune", tmpl_retune},
     {"ctl_stamp", tmpl_ctl_stamp},
@@ -3617,7 +3621,19 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     }
     if (scatter.len)
         emit(&body, "            for (int l = 0; l < nl; l++) {\n%s            }\n", deeper(in_lanes(str(&scatter), &lane), 4));
-    if (flushes)
+    /* The lanes whose run ends at this frame are flushed.  Where every loop
+     * over the lanes is a loop over all of them (no lane is left to a
+     * solver's own steps), every lane's states go through flush_lane, a
+     * loop without branches as the others are, which the compiler keeps
+     * vectorised with them; otherwise (the states are in memory anyway),
+     * a loop over the lanes that flushes those whose run ends. */
+    bool each = !anys.len && wide;
+    if (flushes && each)
+        emit(&body, "            if (t_fm[n %% FLUSH_RUN]) { /* some lane's run ends here */\n"
+                    "                const real *const t_f = t_fl[n %% FLUSH_RUN];\n"
+                    "                for (int l = 0; l < WDV_LANES; l++) {\n%s                }\n            }\n",
+             deeper(replace_all(in_lanes(str(&fl), &lane), "flush(", "flush_lane(t_f[l], "), 3));
+    else if (flushes)
         emit(&body, "            const unsigned t_m = t_fm[n %% FLUSH_RUN]; /* the lanes whose run ends here */\n"
                     "            if (t_m)\n                for (int l = 0; l < nl; l++)\n"
                     "                    if (t_m >> l & 1) {\n%s                    }\n",
@@ -3627,7 +3643,10 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     if (flushes)
         emit(&wb, "    st->s_run = (st->s_run + (unsigned)nframes) %% FLUSH_RUN;\n");
     const char *ltext = format("%s%s%s", deeper(dirty, 2), deeper(in_lanes(str(&load), &lane), 3),
-                               flushes ? "            t_fm[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN] |= 1u << l;\n" : "");
+                               !flushes ? ""
+                               : each   ? "            t_fm[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN] = 1;\n"
+                                          "            t_fl[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN][l] = 1;\n"
+                                        : "            t_fm[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN] |= 1u << l;\n");
     const char *wtext = deeper(in_lanes(str(&wb), &lane), 2);
     /* a lane's view of its own instance, named as process names it */
     static const char *const view[3] = {"state *const st = vsts[l];", "const double *const *const in = inl[l];",
@@ -3646,7 +3665,10 @@ static const char *batch_text(Ctx *x, const char *dirty) {
         emit(&b, "            %s%s%s[WDV_LANES];\n", var[i].type, var[i].type[strlen(var[i].type) - 1] == '*' ? "" : " ",
              var[i].name);
     emit(&b, "        } t_ln;\n");
-    if (flushes)
+    if (flushes && each)
+        emit(&b, "        /* per frame mod FLUSH_RUN, whether some lane's run ends there, and which (1) */\n"
+                 "        unsigned char t_fm[FLUSH_RUN] = {0};\n        real t_fl[FLUSH_RUN][WDV_LANES] = {{0}};\n");
+    else if (flushes)
         emit(&b, "        unsigned t_fm[FLUSH_RUN] = {0}; /* per frame mod FLUSH_RUN, the lanes whose run ends there */\n");
     const char *parts[2] = {ltext, wtext};
     for (int k = 0; k < 2; k++) {

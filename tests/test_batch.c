@@ -19,7 +19,10 @@
  * voices built with --energy).  A batch of one instance and a batch of
  * none are run too.  The voices whose diodes diode_fast solves run again
  * driven past its tables (inputs up to 3 kV) and built with --tol 1e-12,
- * where fast_lane leaves lanes to diode_fast.
+ * where fast_lane leaves lanes to diode_fast.  Lanes that start at
+ * different points of their runs of FLUSH_RUN samples decay in silence
+ * after a burst of noise: each is flushed at its own frames, as process
+ * flushes it.
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -82,6 +85,27 @@ static void change(const wdv_class *cls, side *a, side *b, int l, tl_rng *r) {
     }
 }
 
+/* Frames pos to pos + nf: side a's instances by a process call each, side
+ * b's by one process_batch call; in[l] are lane l's inputs. */
+static void block(const wdv_class *cls, side *a, side *b, double *in[][MAXIO], int pos, int nf) {
+    const double *ip[LANES][MAXIO], *const *ipl[LANES];
+    double *op[LANES][MAXIO], *const *opl[LANES];
+    void *bst[LANES];
+    for (int l = 0; l < LANES; l++) {
+        for (int k = 0; k < cls->n_inputs; k++)
+            ip[l][k] = in[l][k] + pos;
+        for (int k = 0; k < cls->n_outputs; k++)
+            op[l][k] = a->out[l][k] + pos;
+        cls->process(a->st[l], ip[l], op[l], nf);
+        for (int k = 0; k < cls->n_outputs; k++)
+            op[l][k] = b->out[l][k] + pos;
+        ipl[l] = ip[l];
+        opl[l] = op[l];
+        bst[l] = b->st[l];
+    }
+    cls->process_batch(bst, LANES, ipl, opl, nf);
+}
+
 /* The voice of `path` built with `args` (which hold --batch), its lanes
  * against process calls; the inputs' amplitudes are drawn from 0.1 to 2.1,
  * or log-uniformly from 0.01 to amax if amax is positive. */
@@ -114,26 +138,11 @@ static void lanes_run(const char *path, int single, const char *const *args, dou
             for (int n = 0; n < FRAMES; n++)
                 in[l][k][n] = amp * tl_rng_signed(&r);
         }
-    const double *ip[LANES][MAXIO], *const *ipl[LANES];
-    double *op[LANES][MAXIO], *const *opl[LANES];
-    void *bst[LANES];
     for (int pos = 0; pos < FRAMES;) {
         int nf = 1 + (int)(tl_rng_next(&r) % 127);
         if (nf > FRAMES - pos)
             nf = FRAMES - pos;
-        for (int l = 0; l < LANES; l++) {
-            for (int k = 0; k < cls->n_inputs; k++)
-                ip[l][k] = in[l][k] + pos;
-            for (int k = 0; k < cls->n_outputs; k++)
-                op[l][k] = a.out[l][k] + pos;
-            cls->process(a.st[l], ip[l], op[l], nf);
-            for (int k = 0; k < cls->n_outputs; k++)
-                op[l][k] = b.out[l][k] + pos;
-            ipl[l] = ip[l];
-            opl[l] = op[l];
-            bst[l] = b.st[l];
-        }
-        cls->process_batch(bst, LANES, ipl, opl, nf);
+        block(cls, &a, &b, in, pos, nf);
         pos += nf;
         for (int l = 0; l < LANES; l++)
             if (tl_rng_uniform(&r) < 0.05)
@@ -157,14 +166,14 @@ static void lanes_run(const char *path, int single, const char *const *args, dou
         ediff += energy && memcmp(&wa, &wb, sizeof wa) != 0;
     }
     /* a batch of one instance, and of none, over the first 16 frames again */
-    for (int l = 0; l < LANES; l++) {
-        for (int k = 0; k < cls->n_inputs; k++)
-            ip[l][k] = in[l][k];
-        for (int k = 0; k < cls->n_outputs; k++)
-            op[l][k] = b.out[l][k];
-    }
-    cls->process_batch(bst, 1, ipl, opl, 16);
-    cls->process_batch(bst, 0, ipl, opl, 16);
+    const double *ip[MAXIO], *const *ipl[1] = {ip};
+    double *op[MAXIO], *const *opl[1] = {op};
+    for (int k = 0; k < cls->n_inputs; k++)
+        ip[k] = in[0][k];
+    for (int k = 0; k < cls->n_outputs; k++)
+        op[k] = b.out[0][k];
+    cls->process_batch(b.st, 1, ipl, opl, 16);
+    cls->process_batch(b.st, 0, ipl, opl, 16);
     char opts[64] = "";
     for (int i = 0; args[i]; i++)
         if (strcmp(args[i], "--batch") && strlen(opts) + strlen(args[i]) + 2 < sizeof opts)
@@ -240,8 +249,89 @@ static void test_fast_lanes(void **state) {
         }
 }
 
+/* Lanes at different points of their runs of FLUSH_RUN (8) samples,
+ * decaying in silence after a burst of noise: each lane's states are
+ * flushed at its own frames, as process flushes them, and the flushes
+ * happen (once below FLUSH_BELOW, 1e-30 in double and 1e-18 in float, an
+ * output is 0 within a run or two, where the first output is a
+ * capacitor's voltage, the mean of its two waves: `cap`). */
+static void lanes_decay(const char *path, int single, int cap) {
+    static const char *const batch[] = {"--batch", NULL};
+    tl_voice v;
+    if (tl_voice_build_args(path, single, batch, NULL, &v) != 0)
+        fail_msg("%s: the voice could not be built", path);
+    const wdv_class *cls = v.cls;
+    assert_true(cls->n_inputs <= MAXIO && cls->n_outputs <= MAXIO);
+    side a, b;
+    side_new(&a, cls, 48000);
+    side_new(&b, cls, 48000);
+    tl_rng r;
+    tl_rng_seed(&r, tl_hash_str(path) ^ 77u ^ (uint64_t)single);
+    double *in[MAXIO];
+    for (int k = 0; k < cls->n_inputs; k++) {
+        in[k] = calloc(FRAMES, sizeof(double));
+        assert_non_null(in[k]);
+        for (int n = 0; n < 300; n++)
+            in[k][n] = tl_rng_signed(&r);
+    }
+    double *lin[LANES][MAXIO]; /* every lane's inputs are the same */
+    const double *ip[MAXIO];
+    double *op[MAXIO];
+    /* lane l starts l frames into its runs: l frames of silence first, by process on both sides */
+    for (int l = 0; l < LANES; l++) {
+        for (int k = 0; k < cls->n_inputs; k++)
+            lin[l][k] = in[k], ip[k] = in[k] + FRAMES - LANES;
+        for (int k = 0; k < cls->n_outputs; k++)
+            op[k] = a.out[l][k];
+        cls->process(a.st[l], ip, op, l);
+        cls->process(b.st[l], ip, op, l);
+    }
+    for (int pos = 0; pos < FRAMES;) {
+        int nf = 1 + (int)(tl_rng_next(&r) % 127);
+        if (nf > FRAMES - pos)
+            nf = FRAMES - pos;
+        block(cls, &a, &b, lin, pos, nf);
+        pos += nf;
+    }
+    const double below = single ? 1e-18 : 1e-30;
+    long diff = 0, tiny = 0, worst = 0;
+    for (int l = 0; l < LANES; l++)
+        for (int k = 0; k < cls->n_outputs; k++) {
+            long t = 0;
+            for (int n = 0; n < FRAMES; n++) {
+                diff += memcmp(&a.out[l][k][n], &b.out[l][k][n], sizeof(double)) != 0;
+                t += k == 0 && a.out[l][k][n] != 0 && fabs(a.out[l][k][n]) < below;
+            }
+            tiny += t;
+            worst = t > worst ? t : worst;
+        }
+    printf("%-34s %-6s %d lanes decaying, %d frames: %ld output samples differ from process; "
+           "%ld samples of output 0 below %g and not 0 (at most %ld in one lane)\n",
+           path, single ? "float" : "double", LANES, FRAMES, diff, tiny, below, worst);
+    for (int k = 0; k < cls->n_inputs; k++)
+        free(in[k]);
+    side_free(&a, cls);
+    side_free(&b, cls);
+    tl_voice_free(&v);
+    assert_int_equal(diff, 0);
+    if (cap)
+        assert_true(worst <= 2 * 8);
+}
+
+static void test_decay(void **state) {
+    (void)state;
+    static const char *const nets[] = {"netlists/rc_lowpass.wdn", "netlists/rlc_series.wdn",
+                                       "netlists/diode_clipper.wdn", "netlists/clipper_asym.cir"};
+    static const int cap[] = {1, 0, 1, 1};
+    for (int k = 0; k < 4; k++) {
+        lanes_decay(nets[k], 0, cap[k]);
+        lanes_decay(nets[k], 1, cap[k]);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest fixed[] = {cmocka_unit_test(test_hammers), cmocka_unit_test(test_opt_in),
-                                       cmocka_unit_test(test_energy), cmocka_unit_test(test_fast_lanes)};
-    return tl_run_per_netlist("batch", test_netlist, fixed, 4);
+                                       cmocka_unit_test(test_energy), cmocka_unit_test(test_fast_lanes),
+                                       cmocka_unit_test(test_decay)};
+    return tl_run_per_netlist("batch", test_netlist, fixed, 5);
 }
