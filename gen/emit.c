@@ -1933,11 +1933,14 @@ static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
         emit(o, "    { /* %s: the waves in flight */\n"
                 "        double s = 0;\n"
                 "        for (unsigned m = 1; m <= st->c_D[%d]; m++) {\n"
-                "            double a = st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)];\n"
+                "            double a = %s;\n"
                 "            s += 0.25 * a * a;\n"
                 "        }\n"
                 "        E += s / (4 * st->fs * %s);\n    }\n",
-             e->name, k, x->dl_off[i], x->dl_size[k] - 1, x->dl_off[i], x->dl_size[k] - 1,
+             e->name, k,
+             format(x->single ? "(double)(st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)])"
+                              : "st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)]",
+                    x->dl_off[i], x->dl_size[k] - 1, x->dl_off[i], x->dl_size[k] - 1),
              dbl(x, format("st->c_R[%d]", x->w->leaf_of[i]->id)));
     }
     for (int k = 0; k < x->nnl; k++) {
@@ -2726,7 +2729,7 @@ static void pwl_points(Ctx *x, const Elem *e, int k) {
 /* The highest rate a voice's delay lines and waveguides hold their
  * delays at: four times the netlist's rate or the rate it is compiled
  * for (--rate), and at least 192 kHz; a host running it faster gets
- * delays cut to what the lines hold. */
+ * delays cut to what the lines hold, and tuning says so (INFINITY). */
 static double line_rate(Ctx *x) {
     double top = x->c->rate > x->w->fs ? x->c->rate : x->w->fs;
     return 4 * top > 192000 ? 4 * top : 192000;
@@ -2887,6 +2890,13 @@ static const struct {
                    " * the same test in every lane, on a flag of x's type, so that a loop over the\n"
                    " * lanes is vectorised */\n"
                    "static real flush_lane(real f, real x) { return f != 0 && x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
+    {"line_err", "/* e, or if larger the error in cents of a delay of t samples held in whole\n"
+                 " * samples, from 1 to cap; INFINITY where it cannot be held: shorter than half\n"
+                 " * a sample, or longer than its line */\n"
+                 "static double line_err(double e, double t, unsigned cap) {\n"
+                 "    const double d = floor(t + 0.5);\n"
+                 "    const double c = t < 0.5 || d > cap ? (double)INFINITY : 1200 * fabs(log2(d / t));\n"
+                 "    return c > e ? c : e;\n}\n"},
     {"lu_factor", tmpl_lu},
     {"retune", tmpl_retune},
     {"ctl_stamp", tmpl_ctl_stamp},
@@ -3706,6 +3716,31 @@ static void decl_run(Buf *decl, Buf *wb, Buf *fl) {
     *fl = b;
 }
 
+/* tuning (wdv_class.tuning) for a voice with strings or tubes (their loops'
+ * design errors) or delay lines (each one's delay held in whole samples,
+ * as update holds it: line_err), the largest; "" for one without. */
+static const char *tuning_text(Ctx *x) {
+    const Circuit *c = x->c;
+    if (!c->nwgs && !x->nline)
+        return "";
+    Buf b = {0};
+    emit(&b, "static double voice_tuning(const void *vst) {\n    const state *st = vst;\n    double e = 0;\n");
+    if (c->nwgs)
+        emit(&b, "    for (int w = 0; w < N_WG; w++)\n"
+                 "        e = st->c_werr[w] > e ? st->c_werr[w] : e;\n"
+                 "    if (!(e < WG_UNTUNABLE))\n        return INFINITY;\n");
+    for (int i = 0; i < c->nelems; i++) {
+        const Elem *e = &c->elems[i];
+        if (e->kind == E_W && e->peer > i) { /* named as its line: NAME.1 */
+            const char *dot = strrchr(e->name, '.');
+            emit(&b, "    e = line_err(e, %.17g * st->fs, %d); /* %.*s */\n", e->td, x->dl_size[x->line_of[i]] - 1,
+                 dot ? (int)(dot - e->name) : (int)strlen(e->name), e->name);
+        }
+    }
+    emit(&b, "    return e;\n}\n\n");
+    return str(&b);
+}
+
 static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     Names live = {0};
     const char *sample = sample_text(x, &live);
@@ -3740,13 +3775,8 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
                                          "    for (int k = 0; k < WDV_SOLVE_N; k++)\n"
                                          "        stats[k] = ((const state *)vst)->s_js[k];\n}\n\n" : "");
     set(t, "solve_stats_entry", any_joint(x) ? "voice_solve_stats" : "NULL");
-    set(t, "tuning", x->c->nwgs ? "static double voice_tuning(const void *vst) {\n"
-                                  "    const state *st = vst;\n"
-                                  "    double e = 0;\n"
-                                  "    for (int w = 0; w < N_WG; w++)\n"
-                                  "        e = st->c_werr[w] > e ? st->c_werr[w] : e;\n"
-                                  "    return e < WG_UNTUNABLE ? e : INFINITY;\n}\n\n" : "");
-    set(t, "tuning_entry", x->c->nwgs ? "voice_tuning" : "NULL");
+    set(t, "tuning", tuning_text(x));
+    set(t, "tuning_entry", x->c->nwgs || x->nline ? "voice_tuning" : "NULL");
 }
 
 /* reset and set_ic: what they set before settle (`rest`: initial values;

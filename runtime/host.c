@@ -29,7 +29,7 @@ const char *wdrt_result_str(wdrt_result r)
     case WDRT_FORMAT: return "file is not in a readable format";
     case WDRT_QUEUE_FULL: return "the event queue is full";
     case WDRT_SYNTAX: return "syntax error";
-    case WDRT_OUT_OF_TUNE: return "a voice's string or tube cannot be tuned at this rate";
+    case WDRT_OUT_OF_TUNE: return "a voice's string, tube or delay line cannot be tuned at this rate";
     }
     return "unknown result";
 }

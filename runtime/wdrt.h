@@ -51,8 +51,8 @@ typedef enum wdrt_result {
     WDRT_FORMAT = -7,        /* file is not in a readable format */
     WDRT_QUEUE_FULL = -8,    /* the event queue has no room: post again later */
     WDRT_SYNTAX = -9,        /* a scene or tree has an error (message given) */
-    WDRT_OUT_OF_TUNE = -10,  /* a voice's string or tube cannot be tuned at
-                                the rate (wdv_class.tuning) */
+    WDRT_OUT_OF_TUNE = -10,  /* a voice's string, tube or delay line cannot
+                                be tuned at the rate (wdv_class.tuning) */
 } wdrt_result;
 
 /* A constant string describing r.  Real-time safe. */
@@ -227,9 +227,9 @@ wdrt_result wdrt_engine_get_size(const wdrt_engine_config *cfg, size_t *size);
 /* Makes an engine in `mem` (get_size bytes, any alignment): initialises
  * every instance (the class's init, at the engine's rate) and measures
  * the cost of classes that have none given, by running a scratch instance
- * for about 10 ms.  WDRT_OUT_OF_TUNE if a voice's string or tube cannot
- * be tuned at the engine's rate (wdv_class.tuning), with the pools'
- * params: it would play out of tune.  Not real-time safe. */
+ * for about 10 ms.  WDRT_OUT_OF_TUNE if a voice's string, tube or delay
+ * line cannot be tuned at the engine's rate (wdv_class.tuning), with the
+ * pools' params: it would play out of tune.  Not real-time safe. */
 wdrt_result wdrt_engine_init_prealloc(const wdrt_engine_config *cfg,
                                       void *mem, wdrt_engine **engine);
 /* The same in memory from alloc (NULL: malloc).  Not real-time safe. */

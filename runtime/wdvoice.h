@@ -131,12 +131,15 @@ typedef struct wdv_class {
     /* How far its strings and tubes are from the pitches they are tuned
      * to: the largest error of the first twelve partials of any of them,
      * in cents, as their loops are designed at the rate and params in
-     * effect (those of init, or of the last process call).  INFINITY where
-     * a loop cannot be tuned at that rate: too short for its filters (its
-     * f0 too high for the rate), or, at a rate far above the one the voice
-     * was compiled for, longer than its lines hold.  That voice plays out
-     * of tune, and a host should say so or choose another rate.  NULL: the
-     * voice has no string or tube. */
+     * effect (those of init, or of the last process call), and of its
+     * delay lines (transmission lines) from their delays, each held in
+     * whole samples (1200 |log2(D / (TD fs))| cents).  INFINITY where a
+     * loop or delay cannot be held at that rate: a loop too short for its
+     * filters (its f0 too high for the rate), a delay shorter than half a
+     * sample, or, at a rate far above the one the voice was compiled for,
+     * either longer than its lines hold.  That voice plays out of tune,
+     * and a host should say so or choose another rate.  NULL: the voice
+     * has no string, tube or delay line. */
     double (*tuning)(const void *state);
 } wdv_class;
 

@@ -135,7 +135,7 @@ static void test_out_of_tune(void **s) {
         }
     }
     assert_string_equal(wdrt_result_str(WDRT_OUT_OF_TUNE),
-                        "a voice's string or tube cannot be tuned at this rate");
+                        "a voice's string, tube or delay line cannot be tuned at this rate");
 }
 
 /* A standing voice sleeps once quiet: nothing changes before its fade,

@@ -291,7 +291,8 @@ static void test_first_note(void **s) {
 
 /* At a rate too low for the key's string at its default pitch, the
  * plugin refuses to be instantiated and says why, instead of playing out
- * of tune; at 2 kHz it plays. */
+ * of tune; at 2 kHz it plays.  So does a transmission line's plugin at a
+ * rate where its delay cannot be held; at 44.1 kHz it plays. */
 static void test_rate_too_low(void **s) {
     (void)s;
     const char *wav = format("%s/low.wav", dir), *err = format("%s/low.err", dir);
@@ -300,10 +301,25 @@ static void test_rate_too_low(void **s) {
     char *msg = read_file(err, NULL);
     assert_non_null(msg);
     print_message("%s", msg);
-    assert_non_null(strstr(msg, "key: a string or tube cannot be tuned at 1000 Hz (its loop too short for its "
-                                "filters there, or longer than its lines hold)"));
+    assert_non_null(strstr(msg, "key: a string, tube or delay line cannot be tuned at 1000 Hz (a loop too short "
+                                "for its filters there, a delay shorter than half a sample, or longer than its "
+                                "lines hold)"));
     assert_int_equal(run("%s %s/lv2/key.lv2 urn:wdc:voice:key %s --rate 2000 --frames 100 2>%s", HOST, dir, wav, err),
                      0);
+    /* a transmission line of 1 ms: shorter than half a sample at 400 Hz,
+     * longer than its lines hold (made for 192 kHz) at 384 kHz */
+    assert_int_equal(bundle("gcc", "tests/nets/tline.wdn", format("%s/lv2", dir), "tline"), 0);
+    for (int k = 0; k < 3; k++) {
+        const double fs = k == 0 ? 400 : k == 1 ? 384000 : 44100;
+        assert_int_equal(run("%s %s/lv2/tline.lv2 urn:wdc:voice:tline %s --rate %g --frames 100 2>%s", HOST, dir, wav,
+                             fs, err),
+                         k == 2 ? 0 : 1);
+        msg = read_file(err, NULL);
+        assert_non_null(msg);
+        print_message("tline at %g Hz: %s", fs, *msg ? msg : "plays\n");
+        if (k < 2)
+            assert_non_null(strstr(msg, format("tline: a string, tube or delay line cannot be tuned at %g Hz", fs)));
+    }
 }
 
 /* Two overlapping notes of different pitch and velocity sum. */

@@ -182,6 +182,35 @@ static void test_tuning_reported(void **state) {
     tl_voice_free(&rc);
 }
 
+/* A transmission line's delay (tests/nets/tline.wdn: 1 ms, its lines
+ * made for 192 kHz, 255 samples) is held in whole samples: tuning gives
+ * the error of that rounding in cents, 1200 |log2(D / (TD fs))| (0 at
+ * 48 kHz, 3.93 at 44.1 kHz), and INFINITY where the delay cannot be held:
+ * shorter than half a sample (400 Hz) or longer than its line (256 kHz). */
+static void test_line_tuning(void **state) {
+    (void)state;
+    tl_voice v;
+    assert_int_equal(tl_voice_build("tests/nets/tline.wdn", 0, &v), 0);
+    const wdv_class *c = v.cls;
+    assert_non_null(c->tuning);
+    static const double rates[] = {48000, 44100, 1000, 7, 255000, 256000, 400, 1e6};
+    for (int k = 0; k < 8; k++) {
+        void *st = tl_state_new(c, rates[k]);
+        const double t = 1e-3 * rates[k], d = floor(t + 0.5);
+        const double want = t < 0.5 || d > 255 ? INFINITY : 1200 * fabs(log2(d / t));
+        printf("1 ms at %g Hz: %g samples, %g cents (closed form %g)\n", rates[k], d, c->tuning(st), want);
+        if (isinf(want))
+            assert_true(isinf(c->tuning(st)));
+        else
+            assert_true(fabs(c->tuning(st) - want) <= 1e-12 * (1 + want));
+        tl_state_free(st);
+    }
+    void *st = tl_state_new(c, 44100);
+    assert_true(c->tuning(st) > 3.9 && c->tuning(st) < 3.95);
+    tl_state_free(st);
+    tl_voice_free(&v);
+}
+
 /* ---- harmonics of a lossy ideal string ----
  * The loss filter's phase delay falls with frequency; the tuning stage
  * offsets it.  Partials 1..4 within 1 cent of n f0 up to E6 (1318.5 Hz,
@@ -458,7 +487,7 @@ static void test_glide(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_filters_passive), cmocka_unit_test(test_tuning), cmocka_unit_test(test_tuning_reported),
+        cmocka_unit_test(test_filters_passive), cmocka_unit_test(test_tuning), cmocka_unit_test(test_tuning_reported), cmocka_unit_test(test_line_tuning),
         cmocka_unit_test(test_harmonics),
         cmocka_unit_test(test_stiffness),
         cmocka_unit_test(test_decay), cmocka_unit_test(test_tube), cmocka_unit_test(test_glide),
