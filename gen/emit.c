@@ -933,16 +933,18 @@ static void emit_nl_solve(Ctx *x, int k) {
     emit(&o, "        {\n");
     if (nl->mutated == 'C') { /* passive stepping of a stored charge: cap_solve */
         emit(&o, "            const el_law t_L = %s;\n            double t_v;\n", el_law_init(k, nl, true));
-        emit(&o, "            s_nf%d = (real)cap_solve(&t_L, t_an%d, k_Rn%d, s_nf%d, s_nv%d, s_nX%d, 0.5 * k_T, %s, %d, &t_v);\n",
-             k, k, k, k, k, k, tol, it);
+        emit(&o, "            s_nf%d = (real)cap_solve(&t_L, %s, %s, %s, %s, %s, 0.5 * k_T, %s, %d, &t_v);\n", k, an,
+             dbl(x, format("k_Rn%d", k)), dbl(x, format("s_nf%d", k)), dbl(x, format("s_nv%d", k)),
+             dbl(x, format("s_nX%d", k)), tol, it);
         emit(&o, "            s_nX%d = (real)((%s - t_v) / %s);\n", k, an, dbl(x, format("k_Rn%d", k)));
         emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n        }\n", k, k, an);
         put(x, NULL, "%s", str(&o));
         return;
     }
     if (nl->mutated == 'L' || nl->kind == NL_CONTACT) { /* passive stepping of a stored energy: el_solve */
-        const char *solve = format("el_solve(&t_L, t_an%d, k_Rn%d, t_X, s_nv%d, s_nf%d, 0.5 * k_T, %s, %d)", k, k, k,
-                                   k, tol, it);
+        const char *solve = format("el_solve(&t_L, %s, %s, t_X, %s, %s, 0.5 * k_T, %s, %d)", an,
+                                   dbl(x, format("k_Rn%d", k)), dbl(x, format("s_nv%d", k)),
+                                   dbl(x, format("s_nf%d", k)), tol, it);
         emit(&o, "            const el_law t_L = %s;\n", el_law_init(k, nl, true));
         if (nl->kind == NL_CONTACT) /* open with no force left, and staying open at v = a: a passes */
             emit(&o, "            const double t_X = %s - c_nl%d_3;\n"
@@ -950,7 +952,8 @@ static void emit_nl_solve(Ctx *x, int k) {
                      "                                   ? (double)t_an%d : %s;\n", dbl(x, format("s_nX%d", k)), k, k,
                  dbl(x, format("(t_an%d + s_nv%d)", k, k)), k, solve);
         else
-            emit(&o, "            const double t_X = s_nX%d;\n            const double t_v = %s;\n", k, solve);
+            emit(&o, "            const double t_X = %s;\n            const double t_v = %s;\n", dbl(x, format("s_nX%d", k)),
+                 solve);
         emit(&o, "            s_nX%d += k_hT * (real)(t_v + %s);\n", k, dbl(x, format("s_nv%d", k)));
         if (gates)
             emit(&o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n", k, k);
@@ -964,18 +967,19 @@ static void emit_nl_solve(Ctx *x, int k) {
         emit(&o, "            t_bn%d = pwl_map(t_an%d, c_pa%d, c_pb%d, c_ps%d, %d);\n", k, k, k, k, k, x->pwl_n[k]);
         break;
     case SOLVER_FAST:
-        emit(&o, "            t_v%d = diode_fast(t_an%d, %d, ", k, k, nl->pair);
+        emit(&o, "            t_v%d = diode_fast(%s, %d, ", k, an, nl->pair);
         for (int j = 0; j < 6; j++)
-            emit(&o, "c_fk%d_%d, ", k, j);
+            emit(&o, "%s, ", dbl(x, format("c_fk%d_%d", k, j)));
         emit(&o, "fast_om, %s, %d);\n", x->opt->fast_tol > 0 ? format("%.17g", x->opt->fast_tol) : "FAST_BOUND", it);
         break;
     case SOLVER_OMEGA:
-        emit(&o, "            t_v%d = diode_omega(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, %s, %d);\n", k, k, k, k,
-             k, nl->pair, tol, it);
+        emit(&o, "            t_v%d = diode_omega(%s, %s, %s, %s, %d, %s, %d);\n", k, an, dbl(x, format("k_Rn%d", k)),
+             dbl(x, format("c_nl%d_0", k)), dbl(x, format("c_nl%d_1", k)), nl->pair, tol, it);
         break;
     default:
-        emit(&o, "            t_v%d = diode_newton(t_an%d, k_Rn%d, c_nl%d_0, c_nl%d_1, %d, s_nv%d, %s, %d);\n", k,
-             k, k, k, k, nl->pair, k, tol, it);
+        emit(&o, "            t_v%d = diode_newton(%s, %s, %s, %s, %d, %s, %s, %d);\n", k, an,
+             dbl(x, format("k_Rn%d", k)), dbl(x, format("c_nl%d_0", k)), dbl(x, format("c_nl%d_1", k)), nl->pair,
+             dbl(x, format("s_nv%d", k)), tol, it);
         break;
     }
     if (returns_v(x, k))
