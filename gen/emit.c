@@ -3732,7 +3732,7 @@ static const char *tuning_text(Ctx *x) {
     if (c->nwgs)
         emit(&b, "    for (int w = 0; w < N_WG; w++)\n"
                  "        e = st->c_werr[w] > e ? st->c_werr[w] : e;\n"
-                 "    if (!(e < WG_UNTUNABLE))\n        return INFINITY;\n");
+                 "    if (!(e < WG_UNTUNABLE))\n        return (double)INFINITY;\n");
     for (int i = 0; i < c->nelems; i++) {
         const Elem *e = &c->elems[i];
         if (e->kind == E_W && e->peer > i) { /* named as its line: NAME.1 */
