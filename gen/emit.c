@@ -3647,11 +3647,15 @@ static const char *batch_text(Ctx *x, const char *dirty) {
                     "                const real *const t_f = t_fl[n %% FLUSH_RUN];\n"
                     "                for (int l = 0; l < WDV_LANES; l++) {\n%s                }\n            }\n",
              deeper(replace_all(in_lanes(str(&fl), &lane), "flush(", "flush_lane(t_f[l], "), 3));
-    else if (flushes)
+    else if (flushes) {
         emit(&body, "            const unsigned t_m = t_fm[n %% FLUSH_RUN]; /* the lanes whose run ends here */\n"
                     "            if (t_m)\n                for (int l = 0; l < nl; l++)\n"
                     "                    if (t_m >> l & 1) {\n%s                    }\n",
              deeper(in_lanes(str(&fl), &lane), 4));
+        if (wide) /* the lanes past nl take lane 0's flushed states: its copies, out of the subnormals */
+            emit(&body, "            if (t_m & 1u)\n                for (int l = nl; l < WDV_LANES; l++) {\n%s                }\n",
+                 deeper(replace_all(replace_all(in_lanes(str(&fl), &lane), "flush(", ""), "[l]);", "[0];"), 3));
+    }
     if (uses(str(&body), "in") || uses(str(&body), "out"))
         return fallback;
     if (flushes)
@@ -3696,6 +3700,10 @@ static const char *batch_text(Ctx *x, const char *dirty) {
             for (int i = 0; i < nvar; i++)
                 if (var[i].loaded)
                     emit(&b, "            t_ln.%s[l] = t_ln.%s[0];\n", var[i].name, var[i].name);
+            /* flushed with lane 0, they stay its copies (and out of the subnormals) */
+            if (flushes && each)
+                emit(&b, "            for (int m = 0; m < FLUSH_RUN; m++)\n                t_fl[m][l] = t_fl[m][0];\n");
+
             emit(&b, "        }\n");
         }
         if (k == 0)
