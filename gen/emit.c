@@ -3554,8 +3554,10 @@ static const char *batch_text(Ctx *x, const char *dirty) {
                  a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[8], a[9], slow, k, slow);
             emit(&anys, "            int t_any%d = 0;\n", k);
             const char *le = strchr(call, '\n') + 1, *close = strstr(le, "\n        }\n");
-            emit(&fixup[nseg - 1], "        if (t_any%d) /* lanes past the tables, or a tighter tol */\n"
-                                   "            for (int l = 0; l < nl; l++)\n                if (%s)\n        %.*s",
+            emit(&fixup[nseg - 1], "        if (t_any%d) { /* lanes past the tables, or a tighter tol */\n"
+                                   "            LANE_CALLS();\n"
+                                   "            for (int l = 0; l < nl; l++)\n                if (%s)\n        %.*s"
+                                   "        }\n",
                  k, slow, (int)(le - line), line);
             nseg++;
             if (close && close + 1 > le)
