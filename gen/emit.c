@@ -2890,10 +2890,10 @@ static const struct {
               " * its ports out of their junction */\n"
               "static double tapon(double x) { return x > 0 && x < 1 ? 1 : 1e-9; }\n"},
     {"flush", "static real flush(real x) { return x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
-    {"flush_lane", "/* flush(x) in a lane whose run ends here (f is 1), x in the others (f is 0):\n"
-                   " * the same test in every lane, on a flag of x's type, so that a loop over the\n"
-                   " * lanes is vectorised */\n"
-                   "static real flush_lane(real f, real x) { return f != 0 && x > -FLUSH_BELOW && x < FLUSH_BELOW ? (real)0 : x; }\n"},
+    {"flush_lane", "/* flush(x) in a lane whose run ends here (t is FLUSH_BELOW), x in the others\n"
+                   " * (t is 0): one test without branches in every lane and every frame, so\n"
+                   " * that the loop over the lanes is vectorised whole */\n"
+                   "static real flush_lane(real t, real x) { return fabs(x) < t ? (real)0 : x; }\n"},
     {"line_err", "/* e, or if larger the error in cents of a delay of t samples held in whole\n"
                  " * samples, from 1 to cap; INFINITY where it cannot be held: shorter than half\n"
                  " * a sample, or longer than its line */\n"
@@ -2910,7 +2910,7 @@ static const struct {
  * waveguide kernels) name, in order.  clampd is named by the waveguides'
  * prepare, which a voice has only with params, and then set_param names
  * it too. */
-static const char *helpers(const char *text, const char *wg) {
+static const char *helpers(const char *text, const char *wg, bool single) {
     int n = (int)(sizeof helper_tab / sizeof helper_tab[0]);
     bool keep[sizeof helper_tab / sizeof helper_tab[0]] = {0};
     Names used = {0}, wgn = {0}, all = {0};
@@ -2927,7 +2927,9 @@ static const char *helpers(const char *text, const char *wg) {
     Buf b = {0};
     for (int k = 0; k < n; k++)
         if (keep[k])
-            emit(&b, "%s%s", b.len ? "\n" : "", helper_tab[k].text);
+            emit(&b, "%s%s", b.len ? "\n" : "",
+                 single && !strcmp(helper_tab[k].name, "flush_lane") ? replace_all(helper_tab[k].text, "fabs(", "fabsf(")
+                                                                     : helper_tab[k].text);
     return str(&b);
 }
 
@@ -3466,6 +3468,12 @@ typedef struct LaneVar {
  * calling process for each instance: its lines are a working set of
  * their own. */
 static const char *batch_text(Ctx *x, const char *dirty) {
+    /* gcc (8 and later) unrolls a short loop over the lanes completely,
+     * and then vectorises the frame's flush_lane selects lane by lane or
+     * not at all: kept a loop, it is vectorised whole */
+    static const char *const lane_loop =
+        "#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8\n"
+        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n#else\n#define LANE_LOOP\n#endif\n\n";
     static const char *const head =
         "/* process_batch's lanes: the instances whose samples are computed side by side */\n"
         "#define WDV_LANES 8\n\n"
@@ -3614,7 +3622,6 @@ static const char *batch_text(Ctx *x, const char *dirty) {
         }
         seg[s] = b;
     }
-    bool flushes = fl.len > 0;
     /* a loop that names the state (a joint solve's counts) runs over the
      * instances only; the others run over every lane, the lanes past nl
      * repeating lane 0's work (never stored), so that their count is a
@@ -3623,33 +3630,38 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     for (int s = 0; s < nseg; s++)
         wide = wide && !uses(str(&seg[s]), "st") && !uses(str(&fixup[s]), "st");
     const char *lanes = wide ? "WDV_LANES" : "nl";
+    /* Where every loop over the lanes is a loop over all of them (no lane
+     * is left to a solver's own steps), the states of every lane go
+     * through flush_lane at the end of each frame's loop, with the
+     * threshold of the frame's row (FLUSH_BELOW in the lanes whose run
+     * ends there, 0 in the others): a select on values the loop has just
+     * computed, which the compiler vectorises with the rest, where a
+     * separate test would leave the states in memory behind masked
+     * stores.  Otherwise (the states are in memory anyway) a loop over
+     * the instances flushes those whose run ends. */
+    bool flushes = fl.len > 0, each = !anys.len && wide;
+    if (flushes && each) {
+        if (nseg != 1 || fixup[0].len)
+            die("batch: a voice flushed in every lane has one loop over the lanes");
+        emit(&seg[0], "%s", replace_all(str(&fl), "flush(", "flush_lane(t_f[l], "));
+    }
     Buf body = {0};
     if (gather.len) /* the lanes past nl read lane 0's input */
         emit(&body, "            for (int l = 0; l < %s; l++) {\n%s            }\n", lanes, deeper(in_lanes(str(&gather), &lane), 4));
     emit(&body, "%s", str(&anys));
+    if (flushes && each)
+        emit(&body, "            const real *const t_f = t_fl[n %% FLUSH_RUN];\n");
     for (int s = 0; s < nseg; s++) {
         if (seg[s].len) {
             const char *text = in_lanes(str(&seg[s]), &lane);
-            emit(&body, "            for (int l = 0; l < %s; l++) {\n%s%s            }\n", lanes,
-                 uses(text, "st") ? "                state *const st = vsts[l];\n" : "", deeper(text, 2));
+            emit(&body, "%s            for (int l = 0; l < %s; l++) {\n%s%s            }\n", each ? "            LANE_LOOP\n" : "",
+                 lanes, uses(text, "st") ? "                state *const st = vsts[l];\n" : "", deeper(text, 2));
         }
         emit(&body, "%s", deeper(in_lanes(str(&fixup[s]), &lane), 1));
     }
     if (scatter.len)
         emit(&body, "            for (int l = 0; l < nl; l++) {\n%s            }\n", deeper(in_lanes(str(&scatter), &lane), 4));
-    /* The lanes whose run ends at this frame are flushed.  Where every loop
-     * over the lanes is a loop over all of them (no lane is left to a
-     * solver's own steps), every lane's states go through flush_lane, a
-     * loop without branches as the others are, which the compiler keeps
-     * vectorised with them; otherwise (the states are in memory anyway),
-     * a loop over the lanes that flushes those whose run ends. */
-    bool each = !anys.len && wide;
-    if (flushes && each)
-        emit(&body, "            if (t_fm[n %% FLUSH_RUN]) { /* some lane's run ends here */\n"
-                    "                const real *const t_f = t_fl[n %% FLUSH_RUN];\n"
-                    "                for (int l = 0; l < WDV_LANES; l++) {\n%s                }\n            }\n",
-             deeper(replace_all(in_lanes(str(&fl), &lane), "flush(", "flush_lane(t_f[l], "), 3));
-    else if (flushes) {
+    if (flushes && !each) {
         emit(&body, "            const unsigned t_m = t_fm[n %% FLUSH_RUN]; /* the lanes whose run ends here */\n"
                     "            if (t_m)\n                for (int l = 0; l < nl; l++)\n"
                     "                    if (t_m >> l & 1) {\n%s                    }\n",
@@ -3664,8 +3676,7 @@ static const char *batch_text(Ctx *x, const char *dirty) {
         emit(&wb, "    st->s_run = (st->s_run + (unsigned)nframes) %% FLUSH_RUN;\n");
     const char *ltext = format("%s%s%s", deeper(dirty, 2), deeper(in_lanes(str(&load), &lane), 3),
                                !flushes ? ""
-                               : each   ? "            t_fm[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN] = 1;\n"
-                                          "            t_fl[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN][l] = 1;\n"
+                               : each   ? "            t_fl[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN][l] = FLUSH_BELOW;\n"
                                         : "            t_fm[FLUSH_RUN - 1 - st->s_run % FLUSH_RUN] |= 1u << l;\n");
     const char *wtext = deeper(in_lanes(str(&wb), &lane), 2);
     /* a lane's view of its own instance, named as process names it */
@@ -3674,8 +3685,8 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     static const char *const vname[3] = {"st", "in", "out"};
     bool uin = uses(ltext, "in") || uses(wtext, "in"), uout = uses(ltext, "out") || uses(wtext, "out");
     Buf b = {0};
-    emit(&b, "%s%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n", anys.len ? format("%s\n", tmpl_nl_fast_lane) : "",
-         format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
+    emit(&b, "%s%s%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n", anys.len ? format("%s\n", tmpl_nl_fast_lane) : "",
+         each ? lane_loop : "", format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
     emit(&b, "        const int nl = n - l0 < WDV_LANES ? n - l0 : WDV_LANES;\n"
              "        void *const *const vsts = states + l0;\n%s%s%s",
          uin ? "        const double *const *const *const inl = ins + l0;\n" : "",
@@ -3686,8 +3697,8 @@ static const char *batch_text(Ctx *x, const char *dirty) {
              var[i].name);
     emit(&b, "        } t_ln;\n");
     if (flushes && each)
-        emit(&b, "        /* per frame mod FLUSH_RUN, whether some lane's run ends there, and which (1) */\n"
-                 "        unsigned char t_fm[FLUSH_RUN] = {0};\n        real t_fl[FLUSH_RUN][WDV_LANES] = {{0}};\n");
+        emit(&b, "        /* per frame mod FLUSH_RUN, each lane's flush threshold: FLUSH_BELOW where its run ends */\n"
+                 "        real t_fl[FLUSH_RUN][WDV_LANES] = {{0}};\n");
     else if (flushes)
         emit(&b, "        unsigned t_fm[FLUSH_RUN] = {0}; /* per frame mod FLUSH_RUN, the lanes whose run ends there */\n");
     const char *parts[2] = {ltext, wtext};
@@ -4137,7 +4148,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
     }
     t.n -= 3;
     set(&t, "wg_kernels", str(&wgk));
-    set(&t, "helpers", helpers(bare, str(&wgk)));
+    set(&t, "helpers", helpers(bare, str(&wgk), opt->single));
     set(&t, "codes", codes(bare, str(&wgk)));
     const char *ctext = one_blank(fill_with(tmpl_voice_c, &t));
     const char *fields = used_fields(state_fields(&x, nd), ctext);
