@@ -2894,12 +2894,11 @@ static const struct {
                    " * (t is 0): one test without branches in every lane and every frame, so\n"
                    " * that the loop over the lanes is vectorised whole */\n"
                    "static real flush_lane(real t, real x) { return fabs(x) < t ? (real)0 : x; }\n"},
-    {"line_err", "/* e, or if larger the error in cents of a delay of t samples held in whole\n"
-                 " * samples, from 1 to cap; INFINITY where it cannot be held: shorter than half\n"
-                 " * a sample, or longer than its line */\n"
-                 "static double line_err(double e, double t, unsigned cap) {\n"
-                 "    const double d = floor(t + 0.5);\n"
-                 "    const double c = t < 0.5 || d > cap ? (double)INFINITY : 1200 * fabs(log2(d / t));\n"
+    {"line_err", "/* e, or if larger the error in cents of a delay of t samples held as d\n"
+                 " * (update's, rounded to whole samples from 1 to cap); INFINITY where it\n"
+                 " * cannot be held: shorter than half a sample, or longer than its line */\n"
+                 "static double line_err(double e, double t, unsigned d, unsigned cap) {\n"
+                 "    const double c = t < 0.5 || t >= cap + 0.5 ? (double)INFINITY : 1200 * fabs(log2(d / t));\n"
                  "    return c > e ? c : e;\n}\n"},
     {"lu_factor", tmpl_lu},
     {"retune", tmpl_retune},
@@ -3758,8 +3757,8 @@ static const char *tuning_text(Ctx *x) {
         const Elem *e = &c->elems[i];
         if (e->kind == E_W && e->peer > i) { /* named as its line: NAME.1 */
             const char *dot = strrchr(e->name, '.');
-            emit(&b, "    e = line_err(e, %.17g * st->fs, %d); /* %.*s */\n", e->td, x->dl_size[x->line_of[i]] - 1,
-                 dot ? (int)(dot - e->name) : (int)strlen(e->name), e->name);
+            emit(&b, "    e = line_err(e, %.17g * st->fs, st->c_D[%d], %d); /* %.*s */\n", e->td, x->line_of[i],
+                 x->dl_size[x->line_of[i]] - 1, dot ? (int)(dot - e->name) : (int)strlen(e->name), e->name);
         }
     }
     emit(&b, "    return e;\n}\n\n");
