@@ -30,9 +30,21 @@ const Prim prims[] = {
      * prim_ic); a diode or curve at rest carries no current */
     [E_NL] = {"nonlinear one-port", "i = g(v), or the law of a stored coordinate (NlSpec)", WD_ROOT, 'v', 0,
               ROOT_ALWAYS, IC_OPEN, IC_OPEN},
-    /* an empty line looks like its Z0 to the initial-condition solve */
+    /* an empty line looks like its Z0 to the initial-condition solve; each
+     * end keeps the waves that enter at it ($o: its buffer, $p: the other
+     * end's, $k: the line, whose delay in samples is k_D$k, $m: the mask of
+     * the positions).  The trapezoidal rule balances reactances against
+     * the power of two-sample averages of v and i; in those terms a line
+     * delays the averaged wave (a[m] + a[m-1]) / 2, each carrying
+     * T a^2 / (4 Z0). */
     [E_W] = {"line end", "b(t) = a(t - TD) entered at the other end; port Z0", WD_DELAY, 'v', 0, ROOT_NEVER, IC_RES,
-             IC_RES},
+             IC_RES, .reflect = "s_dl[$p + ((t_pos - k_D$k) & $m)]", .absorb = "s_dl[$o + (t_pos & $m)] = flush($a);",
+             .energy = "double s = 0;\n"
+                       "        for (unsigned m = 1; m <= st->c_D[$k]; m++) {\n"
+                       "            double a = D(st->s_dl[$o + ((st->s_pos - m) & $m)] + st->s_dl[$o + ((st->s_pos - m - 1) & $m)]);\n"
+                       "            s += 0.25 * a * a;\n"
+                       "        }\n"
+                       "        E += s / (4 * st->fs * D($R));"},
     /* its last incoming wave behind its port resistance */
     [E_S] = {"waveguide port", "b = the wave the string or tube brings; port its impedance", WD_WAVEGUIDE, 'v', 0,
              ROOT_NEVER, IC_WAVE, IC_WAVE},

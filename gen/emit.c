@@ -349,6 +349,7 @@ static const char *dbl(Ctx *x, const char *s) { return x->single ? format("(doub
  * $a, $b, $e, $R and $x. */
 typedef struct StampArgs {
     const char *a, *b, *e, *R, *x;
+    const char *o, *p, *k, *m; /* a line end's: its buffer's offset, the other end's, the line, the mask */
 } StampArgs;
 
 /* Fills *s up to an unmatched ')' or its end into o; D(...) becomes its
@@ -358,7 +359,8 @@ static const char *stamp_fill(Ctx *x, const char *s, const StampArgs *g, Buf *o)
     while (*s && *s != ')') {
         if (*s == '$') {
             const char *v = s[1] == 'a' ? g->a : s[1] == 'b' ? g->b : s[1] == 'e' ? g->e : s[1] == 'R' ? g->R
-                          : s[1] == 'x' ? g->x : NULL;
+                          : s[1] == 'x' ? g->x : s[1] == 'o' ? g->o : s[1] == 'p' ? g->p : s[1] == 'k' ? g->k
+                          : s[1] == 'm' ? g->m : NULL;
             if (!v)
                 die("a stamp names $%c, which its printer does not give", s[1]);
             emit(o, "%s", v);
@@ -379,6 +381,19 @@ static const char *stamp_fill(Ctx *x, const char *s, const StampArgs *g, Buf *o)
             emit(o, "%c", *s++);
     }
     return s;
+}
+
+/* A line end's arguments to its stamps (element i): where the waves
+ * that enter at it are kept, where the other end's are, its line's delay
+ * and the mask of the buffers' positions; g as it is for anything else. */
+static StampArgs line_args(Ctx *x, int i, StampArgs g) {
+    const Elem *e = &x->c->elems[i];
+    if (prims[e->kind].wd != WD_DELAY)
+        return g;
+    int k = x->line_of[i];
+    g.o = format("%d", x->dl_off[i]), g.p = format("%d", x->dl_off[e->peer]);
+    g.k = format("%d", k), g.m = format("%du", x->dl_size[k] - 1);
+    return g;
 }
 
 /* A primitive's stamp as C text. */
@@ -753,9 +768,10 @@ static void emit_forward(Ctx *x) {
             const Prim *pr = &prims[e->kind];
             if (pr->reflect) { /* its descriptor's stamp: a name as it is, else a statement */
                 const char *b = stamp(x, pr->reflect,
-                                      (StampArgs){.a = x->react[i] >= 0 ? format("s_a%d", x->react[i]) : NULL,
-                                                  .e = pr->wd == WD_SOURCE ? drive_of(x, e) : NULL,
-                                                  .R = format("k_R%d", i)});
+                                      line_args(x, n->elem,
+                                                (StampArgs){.a = x->react[i] >= 0 ? format("s_a%d", x->react[i]) : NULL,
+                                                            .e = pr->wd == WD_SOURCE ? drive_of(x, e) : NULL,
+                                                            .R = format("k_R%d", i)}));
                 if (plain(b))
                     x->b[i] = b;
                 else {
@@ -765,13 +781,6 @@ static void emit_forward(Ctx *x) {
                 continue;
             }
             switch (pr->wd) {
-            case WD_DELAY: {
-                int k = x->line_of[n->elem];
-                put(x, tb, "        const real t_b%d = s_dl[%d + ((t_pos - k_D%d) & %du)]; /* %s */\n", i,
-                    x->dl_off[e->peer], k, x->dl_size[k] - 1, e->name);
-                x->b[i] = tb;
-                break;
-            }
             case WD_WAVEGUIDE: {
                 int w = e->wg;
                 put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, wave_in(x, e, "t_pos"), e->name);
@@ -1377,9 +1386,9 @@ static void emit_backward(Ctx *x) {
                 int r = x->react[i];
                 put(x, NULL, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
-            } else if (prims[e->kind].wd == WD_DELAY) {
-                put(x, NULL, "        s_dl[%d + (t_pos & %du)] = flush(%s); /* %s */\n", x->dl_off[n->elem],
-                    x->dl_size[x->line_of[n->elem]] - 1, a, e->name);
+            } else if (prims[e->kind].absorb) {
+                put(x, NULL, "        %s /* %s */\n", stamp(x, prims[e->kind].absorb, line_args(x, n->elem, (StampArgs){.a = a})),
+                    e->name);
             } else if (prims[e->kind].wd == WD_WAVEGUIDE) {
                 int open[64], nopen, tk = tap_kind(x, n->elem, open, &nopen);
                 if (tk == 1) {
@@ -1926,26 +1935,11 @@ static const char *mem_locals(int k, const NlSpec *nl) {
 static void emit_energy(Ctx *x, Buf *o, Buf *kirch) {
     for (int w = 0; w < x->c->nwgs; w++)
         emit(o, "    E += wg_energy(st, %d); /* %s */\n", w, x->c->wgs[w].name);
-    for (int i = 0; i < x->c->nelems; i++) {
+    for (int i = 0; i < x->c->nelems; i++) { /* the waves a line end keeps */
         const Elem *e = &x->c->elems[i];
-        if (e->kind != E_W)
-            continue;
-        int k = x->line_of[i];
-        /* The trapezoidal rule balances reactances against the power of
-         * two-sample averages of v and i; in those terms a line delays the
-         * averaged wave (a[m] + a[m-1]) / 2, each carrying T a^2 / (4 Z0). */
-        emit(o, "    { /* %s: the waves in flight */\n"
-                "        double s = 0;\n"
-                "        for (unsigned m = 1; m <= st->c_D[%d]; m++) {\n"
-                "            double a = %s;\n"
-                "            s += 0.25 * a * a;\n"
-                "        }\n"
-                "        E += s / (4 * st->fs * %s);\n    }\n",
-             e->name, k,
-             format(x->single ? "(double)(st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)])"
-                              : "st->s_dl[%d + ((st->s_pos - m) & %du)] + st->s_dl[%d + ((st->s_pos - m - 1) & %du)]",
-                    x->dl_off[i], x->dl_size[k] - 1, x->dl_off[i], x->dl_size[k] - 1),
-             dbl(x, format("st->c_R[%d]", x->w->leaf_of[i]->id)));
+        if (prims[e->kind].absorb && prims[e->kind].energy)
+            emit(o, "    { /* %s: the waves in flight */\n        %s\n    }\n", e->name,
+                 stamp(x, prims[e->kind].energy, line_args(x, i, (StampArgs){.R = format("st->c_R[%d]", x->w->leaf_of[i]->id)})));
     }
     for (int k = 0; k < x->nnl; k++) {
         const Elem *e = nl_elem(x, k);

@@ -586,8 +586,11 @@ enum { ROOT_NEVER, ROOT_IDEAL, ROOT_ALWAYS };
 
 /* Its stamps are C text the printer (emit.c) fills in: $a is the wave it
  * took in last (incident), $b the wave it reflected, $e its drive, $R its
- * port resistance, $x a value the stamp says; D(...) is computed in
- * double in a float voice.  A stamp a primitive does not have is NULL. */
+ * port resistance, $x a value the stamp says; a line end's also name its
+ * buffer's offset in s_dl ($o), the other end's ($p), its line ($k, whose
+ * delay is k_D$k in the sample loop and st->c_D[$k] elsewhere) and the
+ * mask of the buffers' positions ($m); D(...) is computed in double in a
+ * float voice.  A stamp a primitive does not have is NULL. */
 typedef struct Prim {
     const char *name;
     const char *law;   /* in its value: R, C, L, e and R, j and R, Z0 */
@@ -596,7 +599,8 @@ typedef struct Prim {
     char state;        /* what it stores between samples: 'C' a charge (its voltage), 'L' a flux (its current), 0 nothing */
     int root;          /* ROOT_*: when it joins the root adaptor (ROOT_IDEAL: without a resistance) */
     int ic, ic_resistive; /* how it enters the initial-condition solve (IC_*), ideal and with a resistance */
-    const char *reflect;  /* the wave it reflects ($a: its held wave); NULL: a line or waveguide prints it */
+    const char *reflect;  /* the wave it reflects ($a: its held wave); NULL: a waveguide port's, which the printer makes */
+    const char *absorb;   /* a statement keeping the wave it takes in ($a) in a buffer of its own, or NULL */
     const char *stored;   /* what it stores (its voltage, its current), from its waves $a and $b */
     const char *energy;   /* statements adding its stored energy to E, $x being what it stores */
     char strike;          /* the strike target that sets what it stores, between its node and ground: 'v' or 'x' */

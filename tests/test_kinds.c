@@ -46,6 +46,45 @@ static void test_descriptors(void **state) {
     }
 }
 
+/* The stamps of a primitive name only what the printer gives ($a $b $e
+ * $R $x, a line end's $o $p $k $m) and close every parenthesis; what
+ * stores between samples has all its stamps, what keeps a buffer reflects
+ * from it and counts its energy, and only what joins a root adaptor or
+ * is a waveguide's port reflects nothing of its own. */
+static void stamp_ok(const char *t, bool line) {
+    if (!t)
+        return;
+    int depth = 0;
+    for (const char *p = t; *p; p++) {
+        depth += *p == '(' ? 1 : *p == ')' ? -1 : 0;
+        assert_true(depth >= 0);
+        if (*p == '$') {
+            assert_non_null(strchr(line ? "abeRxopkm" : "abeRx", p[1]));
+            assert_true(p[1] != 0);
+        }
+    }
+    assert_int_equal(depth, 0);
+}
+
+static void test_primitives(void **state) {
+    (void)state;
+    for (int k = E_R; k <= E_XF; k++) {
+        const Prim *p = &prims[k];
+        assert_non_null(p->name);
+        assert_non_null(p->law);
+        bool line = p->wd == WD_DELAY;
+        const char *st[] = {p->reflect, p->absorb, p->stored, p->energy, p->struck};
+        for (int j = 0; j < 5; j++)
+            stamp_ok(st[j], line);
+        if (p->state)
+            assert_true(p->reflect && p->stored && p->energy && p->struck && (p->strike == 'v' || p->strike == 'x'));
+        if (p->absorb)
+            assert_true(p->reflect && p->energy && strstr(p->absorb, "$a"));
+        assert_true((p->reflect == NULL) == (p->wd == WD_ROOT || p->wd == WD_WAVEGUIDE));
+        assert_true((p->absorb != NULL) == line);
+    }
+}
+
 static void test_registry(void **state) {
     (void)state;
     for (int k = 0; k < BK_COUNT; k++) {
@@ -202,6 +241,7 @@ static void test_waveguides(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_descriptors),
+        cmocka_unit_test(test_primitives),
         cmocka_unit_test(test_registry),
         cmocka_unit_test(test_electrical),
         cmocka_unit_test(test_mechanical),
