@@ -169,6 +169,17 @@ static bool uses(const char *text, const char *name) {
     return false;
 }
 
+/* True if text calls a function other than flush_lane and fabs (which
+ * a loop over the lanes vectorises). */
+static bool calls_out(const char *text) {
+    size_t len;
+    for (const char *b; (b = next_ident(&text, &len));)
+        if (*text == '(' && !(len == 10 && !memcmp(b, "flush_lane", 10)) && !(len == 4 && !memcmp(b, "fabs", 4)) &&
+            !(len == 5 && !memcmp(b, "fabsf", 5)))
+            return true;
+    return false;
+}
+
 /* True if any of the n texts names `name`. */
 static bool uses_any(const char *const *texts, int n, const char *name) {
     for (int i = 0; i < n; i++)
@@ -3463,10 +3474,23 @@ typedef struct LaneVar {
 static const char *batch_text(Ctx *x, const char *dirty) {
     /* gcc (8 and later) unrolls a short loop over the lanes completely,
      * and then vectorises the frame's flush_lane selects lane by lane or
-     * not at all: kept a loop, it is vectorised whole */
+     * not at all: kept a loop, it is vectorised whole.  clang, too, unrolls
+     * it and then leaves it mostly scalar; kept a loop, it vectorises it
+     * once told that no lane touches another's (each iteration reads and
+     * writes element l of the lane arrays only) and once the inputs are
+     * read in it rather than in a loop of their own, as gcc prefers */
     static const char *const lane_loop =
         "#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8\n"
-        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n#else\n#define LANE_LOOP\n#endif\n\n";
+        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n"
+        "#elif defined(__clang__)\n"
+        "#define LANE_LOOP _Pragma(\"clang loop unroll(disable) vectorize(assume_safety)\")\n"
+        "#else\n#define LANE_LOOP\n#endif\n\n";
+    /* the same for a loop that calls a solver, which clang cannot vectorise
+     * (and would say so) */
+    static const char *const lane_calls =
+        "#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8\n"
+        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n"
+        "#else\n#define LANE_LOOP\n#endif\n\n";
     static const char *const head =
         "/* process_batch's lanes: the instances whose samples are computed side by side */\n"
         "#define WDV_LANES 8\n\n"
@@ -3639,16 +3663,22 @@ static const char *batch_text(Ctx *x, const char *dirty) {
         emit(&seg[0], "%s", replace_all(str(&fl), "flush(", "flush_lane(t_f[l], "));
     }
     Buf body = {0};
-    if (gather.len) /* the lanes past nl read lane 0's input */
-        emit(&body, "            for (int l = 0; l < %s; l++) {\n%s            }\n", lanes, deeper(in_lanes(str(&gather), &lane), 4));
+    /* the lanes past nl read lane 0's input; under clang, in the loop over
+     * the lanes (LANE_LOOP) */
+    const char *gtext = deeper(in_lanes(str(&gather), &lane), 4);
+    bool vec = each && seg[0].len && !calls_out(str(&seg[0])), gin = gather.len && vec;
+    if (gather.len)
+        emit(&body, "%s            for (int l = 0; l < %s; l++) {\n%s            }\n%s", gin ? "#if !defined(__clang__)\n" : "",
+             lanes, gtext, gin ? "#endif\n" : "");
     emit(&body, "%s", str(&anys));
     if (flushes && each)
         emit(&body, "            const real *const t_f = t_fl[n %% FLUSH_RUN];\n");
     for (int s = 0; s < nseg; s++) {
         if (seg[s].len) {
             const char *text = in_lanes(str(&seg[s]), &lane);
-            emit(&body, "%s            for (int l = 0; l < %s; l++) {\n%s%s            }\n", each ? "            LANE_LOOP\n" : "",
-                 lanes, uses(text, "st") ? "                state *const st = vsts[l];\n" : "", deeper(text, 2));
+            emit(&body, "%s            for (int l = 0; l < %s; l++) {\n%s%s%s            }\n", each ? "            LANE_LOOP\n" : "",
+                 lanes, uses(text, "st") ? "                state *const st = vsts[l];\n" : "",
+                 gin ? format("#if defined(__clang__)\n%s#endif\n", gtext) : "", deeper(text, 2));
         }
         emit(&body, "%s", deeper(in_lanes(str(&fixup[s]), &lane), 1));
     }
@@ -3679,7 +3709,7 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     bool uin = uses(ltext, "in") || uses(wtext, "in"), uout = uses(ltext, "out") || uses(wtext, "out");
     Buf b = {0};
     emit(&b, "%s%s%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n", anys.len ? format("%s\n", tmpl_nl_fast_lane) : "",
-         each ? lane_loop : "", format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
+         vec ? lane_loop : each ? lane_calls : "", format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
     emit(&b, "        const int nl = n - l0 < WDV_LANES ? n - l0 : WDV_LANES;\n"
              "        void *const *const vsts = states + l0;\n%s%s%s",
          uin ? "        const double *const *const *const inl = ins + l0;\n" : "",

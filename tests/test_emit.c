@@ -2,8 +2,9 @@
  * test_emit.c - every example netlist emits a voice that is standalone,
  * portable C.
  *
- * For each netlists/ *.wdn, in double and in float precision and in
- * double with --energy, bin/wdc writes NAME.c / NAME.h into a temporary
+ * For each netlists/ *.wdn, in double and in float precision (both with
+ * --batch, so that process_batch is checked too) and in double with
+ * --energy, bin/wdc writes NAME.c / NAME.h into a temporary
  * directory, and NAME.c must compile with gcc and with clang (clang is
  * skipped with a notice only if it is not installed) under -std=c99 -Wall
  * -Wextra -pedantic -Werror -O2 with exit status 0 and no compiler output
@@ -610,11 +611,11 @@ static void test_netlist(void **state) {
         char log[256];
         snprintf(log, sizeof log, "%s/wdc.log", x.dir);
         char *argv[] = {(char *)wdc, (char *)netlist, "-o", x.dir, "--precision", (char *)precs[pi],
-                        pi == 2 ? "--energy" : NULL, NULL};
+                        pi == 2 ? "--energy" : "--batch", NULL};
         int st = run_logged(argv, log);
         if (st != 0) {
             print_error("%s %s -o %s --precision %s%s: exit status %d\n", wdc, netlist, x.dir, precs[pi],
-                        pi == 2 ? " --energy" : "", st);
+                        pi == 2 ? " --energy" : " --batch", st);
             show_log("wdc", log);
             x.problems++;
         } else {
