@@ -3481,16 +3481,13 @@ static const char *batch_text(Ctx *x, const char *dirty) {
      * read in it rather than in a loop of their own, as gcc prefers */
     static const char *const lane_loop =
         "#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8\n"
-        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n"
+        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n%s"
+        "#else\n#define LANE_LOOP\n#endif\n\n";
+    /* clang's, left out for a loop that calls a solver, which clang cannot
+     * vectorise (and would say so) */
+    static const char *const lane_clang =
         "#elif defined(__clang__)\n"
-        "#define LANE_LOOP _Pragma(\"clang loop unroll(disable) vectorize(assume_safety)\")\n"
-        "#else\n#define LANE_LOOP\n#endif\n\n";
-    /* the same for a loop that calls a solver, which clang cannot vectorise
-     * (and would say so) */
-    static const char *const lane_calls =
-        "#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8\n"
-        "#define LANE_LOOP _Pragma(\"GCC unroll 1\")\n"
-        "#else\n#define LANE_LOOP\n#endif\n\n";
+        "#define LANE_LOOP _Pragma(\"clang loop unroll(disable) vectorize(assume_safety)\")\n";
     static const char *const head =
         "/* process_batch's lanes: the instances whose samples are computed side by side */\n"
         "#define WDV_LANES 8\n\n"
@@ -3709,7 +3706,7 @@ static const char *batch_text(Ctx *x, const char *dirty) {
     bool uin = uses(ltext, "in") || uses(wtext, "in"), uout = uses(ltext, "out") || uses(wtext, "out");
     Buf b = {0};
     emit(&b, "%s%s%s    for (int l0 = 0; l0 < n; l0 += WDV_LANES) {\n", anys.len ? format("%s\n", tmpl_nl_fast_lane) : "",
-         vec ? lane_loop : each ? lane_calls : "", format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
+         each ? format(lane_loop, vec ? lane_clang : "") : "", format(head, uin ? "" : " UNUSED", uout ? "" : " UNUSED"));
     emit(&b, "        const int nl = n - l0 < WDV_LANES ? n - l0 : WDV_LANES;\n"
              "        void *const *const vsts = states + l0;\n%s%s%s",
          uin ? "        const double *const *const *const inl = ins + l0;\n" : "",
