@@ -1336,7 +1336,8 @@ static void emit_joint(Ctx *x, int b) {
 static void emit_root(Ctx *x, int b) {
     const Root *r = &x->w->roots[b];
     x->own = b, x->phase = 'r';
-    put(x, NULL, "        /* root %d */\n", b);
+    if (x->w->nroots > 1) /* one root sits between forward and backward, unnamed */
+        put(x, NULL, "        /* root %d */\n", b);
     if (r->joint)
         emit_joint(x, b);
     for (int k = r->nport; k < r->nport + r->nnl && !r->joint; k++) {
@@ -2409,11 +2410,8 @@ static const char *settle_static(Ctx *x, bool force, const char *probes) {
     Buf o = {0};
     sx_code(sx, &o);
     const char *body = str(&o);
-    return format("/* A consistent Kirchhoff state for the given reactance values (v of each\n"
-                  " * capacitor, i of each inductor) and the sources' last drives: the\n"
-                  " * network with capacitors as voltage sources and inductors as current\n"
-                  " * sources, solved as the compiler eliminated it; the waves of the last\n"
-                  " * sample are set from it. */\n"
+    return format("/* The last sample's waves from a consistent Kirchhoff state: the network as eliminated, with\n"
+                  " * the given reactances (v of a capacitor, i of an inductor) and the sources' last drives. */\n"
                   "static int settle(state *st, const double *react%s) {\n%s    return 0;\n}\n",
                   uses(body, "react") ? "" : " UNUSED", body);
 }
@@ -2910,6 +2908,11 @@ static const struct {
     {"ctl_stamp", tmpl_ctl_stamp},
 };
 
+/* True for a helper that is one static function on one line. */
+static bool one_line(const char *t) {
+    return t && !strncmp(t, "static ", 7) && strchr(t, '\n') == t + strlen(t) - 1;
+}
+
 /* The helpers that `text` (the voice without them) and `wg` (the
  * waveguide kernels) name, in order.  clampd is named by the waveguides'
  * prepare, which a voice has only with params, and then set_param names
@@ -2929,11 +2932,15 @@ static const char *helpers(const char *text, const char *wg, bool single) {
             names_scan_in(&used, helper_tab[k].text, &all);
     }
     Buf b = {0};
+    const char *last = NULL; /* one-line definitions go together, others apart */
     for (int k = 0; k < n; k++)
-        if (keep[k])
-            emit(&b, "%s%s", b.len ? "\n" : "",
+        if (keep[k]) {
+            const char *t = helper_tab[k].text;
+            emit(&b, "%s%s", b.len && !(one_line(last) && one_line(t)) ? "\n" : "",
                  single && !strcmp(helper_tab[k].name, "flush_lane") ? replace_all(helper_tab[k].text, "fabs(", "fabsf(")
                                                                      : helper_tab[k].text);
+            last = t;
+        }
     return str(&b);
 }
 

@@ -692,12 +692,41 @@ static void test_checkers_can_fail(void **state) {
     quiet = 0;
 }
 
+/* Lean voices: the RC lowpass's source stays under 150 lines, and work
+ * accounting is in the voice only with --energy. */
+static void test_lean_rc(void **state) {
+    (void)state;
+    const char *wdc = getenv("WDC");
+    if (!wdc || !*wdc)
+        wdc = "bin/wdc";
+    for (int energy = 0; energy < 2; energy++) {
+        char dir[] = "/tmp/wdc-lean-XXXXXX", log[64], src[96];
+        if (!mkdtemp(dir))
+            fail_msg("mkdtemp: %s", strerror(errno));
+        snprintf(log, sizeof log, "%s/wdc.log", dir);
+        snprintf(src, sizeof src, "%s/rc_lowpass.c", dir);
+        char *argv[] = {(char *)wdc, "netlists/rc_lowpass.wdn", "-o", dir, energy ? "--energy" : NULL, NULL};
+        assert_int_equal(run_logged(argv, log), 0);
+        char *c = slurp(src);
+        assert_non_null(c);
+        int lines = 0;
+        for (const char *p = c; *p; p++)
+            lines += *p == '\n';
+        if (!energy && lines >= 150)
+            fail_msg("%s: %d lines (a lean RC lowpass is under 150)", src, lines);
+        assert_int_equal(strstr(c, "s_work") != NULL, energy);
+        free(c);
+        tl_remove_dir(dir);
+    }
+}
+
 int main(void) {
     have_clang = on_path("clang");
     if (!have_clang)
         printf("test_emit: clang is not installed; compiling with gcc only\n");
     const struct CMUnitTest fixed[] = {
         {.name = "checkers_can_fail", .test_func = test_checkers_can_fail},
+        {.name = "lean_rc", .test_func = test_lean_rc},
     };
-    return tl_run_per_netlist("emit", test_netlist, fixed, 1);
+    return tl_run_per_netlist("emit", test_netlist, fixed, 2);
 }
