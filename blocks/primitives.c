@@ -45,9 +45,12 @@ const Prim prims[] = {
                        "            s += 0.25 * a * a;\n"
                        "        }\n"
                        "        E += s / (4 * st->fs * D($R));"},
-    /* its last incoming wave behind its port resistance */
+    /* its last incoming wave behind its port resistance: read $d samples
+     * back from the line that brings it ($o), what it takes in written at
+     * $q into the other ($p); end b reads the loop filters' output instead */
     [E_S] = {"waveguide port", "b = the wave the string or tube brings; port its impedance", WD_WAVEGUIDE, 'v', 0,
-             ROOT_NEVER, IC_WAVE, IC_WAVE},
+             ROOT_NEVER, IC_WAVE, IC_WAVE, .reflect = "s_wv[$o + ((t_pos - $d) & $m)]",
+             .absorb = "s_wv[$p + ($q & $m)] = $a;"},
     /* controlled sources stamp their root's nodal equations */
     [E_CV] = {"controlled voltage source", "v = gain v(probe)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CV, IC_CV},
     [E_CI] = {"controlled current source", "i = gain v(probe)", WD_ROOT, 'v', 0, ROOT_ALWAYS, IC_CI, IC_CI},

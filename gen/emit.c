@@ -357,10 +357,12 @@ static const char *lit(Ctx *x, double v) {
 static const char *dbl(Ctx *x, const char *s) { return x->single ? format("(double)%s", s) : s; }
 
 /* The texts a primitive's stamp (blocks/primitives.c) is filled with:
- * $a, $b, $e, $R and $x. */
+ * $a, $b, $e, $R and $x; a line end's and a waveguide port's $o, $p,
+ * $k, $m, $d and $q (line_args). */
 typedef struct StampArgs {
     const char *a, *b, *e, *R, *x;
     const char *o, *p, *k, *m; /* a line end's: its buffer's offset, the other end's, the line, the mask */
+    const char *d, *q;         /* a waveguide port's: how far back it reads, where it writes */
 } StampArgs;
 
 /* Fills *s up to an unmatched ')' or its end into o; D(...) becomes its
@@ -371,7 +373,7 @@ static const char *stamp_fill(Ctx *x, const char *s, const StampArgs *g, Buf *o)
         if (*s == '$') {
             const char *v = s[1] == 'a' ? g->a : s[1] == 'b' ? g->b : s[1] == 'e' ? g->e : s[1] == 'R' ? g->R
                           : s[1] == 'x' ? g->x : s[1] == 'o' ? g->o : s[1] == 'p' ? g->p : s[1] == 'k' ? g->k
-                          : s[1] == 'm' ? g->m : NULL;
+                          : s[1] == 'm' ? g->m : s[1] == 'd' ? g->d : s[1] == 'q' ? g->q : NULL;
             if (!v)
                 die("a stamp names $%c, which its printer does not give", s[1]);
             emit(o, "%s", v);
@@ -396,9 +398,26 @@ static const char *stamp_fill(Ctx *x, const char *s, const StampArgs *g, Buf *o)
 
 /* A line end's arguments to its stamps (element i): where the waves
  * that enter at it are kept, where the other end's are, its line's delay
- * and the mask of the buffers' positions; g as it is for anything else. */
+ * and the mask of the buffers' positions.  A waveguide port's: the line
+ * it reads ($o) and how many samples back ($d), the line it writes ($p)
+ * and at which position ($q), and the mask; g as it is for anything
+ * else. */
 static StampArgs line_args(Ctx *x, int i, StampArgs g) {
     const Elem *e = &x->c->elems[i];
+    if (prims[e->kind].wd == WD_WAVEGUIDE) {
+        int w = e->wg, tap = x->wt_off[w] + e->pt - 1, R = x->wv_off[w], L = R + x->wv_size[w];
+        const Waveguide *wg = &x->c->wgs[w];
+        g.m = format("%du", x->wv_size[w] - 1);
+        if (e->side == 0) { /* reads the right-going line, writes the left-going one */
+            g.o = format("%d", R), g.p = format("%d", L), g.d = format("k_wk%d", tap);
+            g.q = e->pt == wg->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
+        } else {
+            g.o = format("%d", L), g.p = format("%d", R);
+            g.d = e->pt == 0 ? format("k_wNL%d", w) : format("(k_wNL%d - k_wk%d)", w, tap);
+            g.q = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
+        }
+        return g;
+    }
     if (prims[e->kind].wd != WD_DELAY)
         return g;
     int k = x->line_of[i];
@@ -753,18 +772,6 @@ static void emit_waveguides(Ctx *x) {
     }
 }
 
-/* The wave that arrives at waveguide port e at sample position pos. */
-static const char *wave_in(Ctx *x, const Elem *e, const char *pos) {
-    int w = e->wg, m = x->wv_size[w] - 1;
-    const Waveguide *g = &x->c->wgs[w];
-    if (e->side == 0)
-        return e->pt == g->ntaps + 1 ? format("t_wb%d", w)
-                                     : format("s_wv[%d + ((%s - k_wk%d) & %du)]", x->wv_off[w], pos,
-                                              x->wt_off[w] + e->pt - 1, m);
-    return format("s_wv[%d + ((%s - %s) & %du)]", x->wv_off[w] + x->wv_size[w], pos,
-                  e->pt == 0 ? format("k_wNL%d", w) : format("(k_wNL%d - k_wk%d)", w, x->wt_off[w] + e->pt - 1), m);
-}
-
 static void emit_forward(Ctx *x) {
     const Circuit *c = x->c;
     x->own = -1, x->phase = 0;
@@ -777,38 +784,35 @@ static void emit_forward(Ctx *x) {
         if (n->kind == W_LEAF) {
             const Elem *e = &c->elems[n->elem];
             const Prim *pr = &prims[e->kind];
-            if (pr->reflect) { /* its descriptor's stamp: a name as it is, else a statement */
-                const char *b = stamp(x, pr->reflect,
-                                      line_args(x, n->elem,
-                                                (StampArgs){.a = x->react[i] >= 0 ? format("s_a%d", x->react[i]) : NULL,
-                                                            .e = pr->wd == WD_SOURCE ? drive_of(x, e) : NULL,
-                                                            .R = format("k_R%d", i)}));
-                if (plain(b))
-                    x->b[i] = b;
-                else {
-                    put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, b, e->name);
-                    x->b[i] = tb;
-                }
-                continue;
+            /* its descriptor's stamp: a name as it is, else a statement; at
+             * end b, the wave the loop filters pass on */
+            bool wg = pr->wd == WD_WAVEGUIDE;
+            if (!pr->reflect) /* a leaf that reflects nothing of its own: none is left to the printer */
+                unreachable();
+            const char *b =
+                wg && e->side == 0 && e->pt == c->wgs[e->wg].ntaps + 1
+                    ? format("t_wb%d", e->wg)
+                    : stamp(x, pr->reflect,
+                            line_args(x, n->elem,
+                                      (StampArgs){.a = x->react[i] >= 0 ? format("s_a%d", x->react[i]) : NULL,
+                                                  .e = pr->wd == WD_SOURCE ? drive_of(x, e) : NULL,
+                                                  .R = format("k_R%d", i)}));
+            x->b[i] = b;
+            if (!plain(b) || wg) {
+                put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, b, e->name);
+                x->b[i] = tb;
             }
-            switch (pr->wd) {
-            case WD_WAVEGUIDE: {
-                int w = e->wg;
-                put(x, tb, "        const real t_b%d = %s; /* %s */\n", i, wave_in(x, e, "t_pos"), e->name);
+            if (wg) {
                 char ph = x->phase;
                 x->phase = 'p'; /* the idle loop keeps it too: a strike's settle reads it */
                 put(x, NULL, "        s_wpre%d = t_b%d;\n", x->sp_of[n->elem], i);
                 x->phase = ph;
-                x->b[i] = tb;
                 if (roams(x, e)) {
                     /* a tap off its string sends nothing into its junction */
                     put(x, format("t_bo%d", i), "        const real t_bo%d = k_won%d ? t_b%d : %s;\n", i,
-                        x->wt_off[w] + e->pt - 1, i, lit(x, 0));
+                        x->wt_off[e->wg] + e->pt - 1, i, lit(x, 0));
                     x->b[i] = format("t_bo%d", i);
                 }
-                break;
-            }
-            default: unreachable();
             }
             continue;
         }
@@ -1398,10 +1402,11 @@ static void emit_backward(Ctx *x) {
                 int r = x->react[i];
                 put(x, NULL, "        s_b%d = %s;\n        s_a%d = %s;\n", r, b, r, a);
                 x->bpost[i] = format("s_b%d", r);
-            } else if (prims[e->kind].absorb) {
-                put(x, NULL, "        %s /* %s */\n", stamp(x, prims[e->kind].absorb, line_args(x, n->elem, (StampArgs){.a = a})),
-                    e->name);
-            } else if (prims[e->kind].wd == WD_WAVEGUIDE) {
+            } else if (prims[e->kind].wd != WD_WAVEGUIDE) {
+                if (prims[e->kind].absorb)
+                    put(x, NULL, "        %s /* %s */\n",
+                        stamp(x, prims[e->kind].absorb, line_args(x, n->elem, (StampArgs){.a = a})), e->name);
+            } else {
                 int open[64], nopen, tk = tap_kind(x, n->elem, open, &nopen);
                 if (tk == 1) {
                     /* nothing else meets here: the wave passes untouched */
@@ -1410,13 +1415,8 @@ static void emit_backward(Ctx *x) {
                     x->bpost[i] = b;
                     continue;
                 }
-                int w = e->wg, m = x->wv_size[w] - 1, tap = x->wt_off[w] + e->pt - 1;
+                int w = e->wg, tap = x->wt_off[w] + e->pt - 1;
                 const Waveguide *g = &x->c->wgs[w];
-                const char *d;
-                if (e->side == 0) /* writes the left-going line */
-                    d = e->pt == g->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
-                else
-                    d = e->pt == 0 ? "t_pos" : format("(t_pos - k_wk%d)", tap);
                 /* untouched while its contacts are open or it is off its string */
                 Buf cond = {0}, o = {0};
                 if (roams(x, e))
@@ -1429,8 +1429,8 @@ static void emit_backward(Ctx *x) {
                 /* what a tap writes reaches an end within a pass of the line,
                  * where it is flushed: tiny waves do not circulate */
                 bool end = e->pt == 0 || e->pt == g->ntaps + 1;
-                emit(&o, "        s_wv[%d + (%s & %du)] = %s%s%s; /* %s */\n",
-                     x->wv_off[w] + (e->side == 0 ? x->wv_size[w] : 0), d, m, end ? "flush(" : "", a, end ? ")" : "",
+                emit(&o, "        %s /* %s */\n",
+                     stamp(x, prims[e->kind].absorb, line_args(x, n->elem, (StampArgs){.a = end ? format("flush(%s)", a) : a})),
                      e->name);
                 put(x, NULL, "%s", str(&o));
             }

@@ -599,7 +599,7 @@ typedef struct Prim {
     char state;        /* what it stores between samples: 'C' a charge (its voltage), 'L' a flux (its current), 0 nothing */
     int root;          /* ROOT_*: when it joins the root adaptor (ROOT_IDEAL: without a resistance) */
     int ic, ic_resistive; /* how it enters the initial-condition solve (IC_*), ideal and with a resistance */
-    const char *reflect;  /* the wave it reflects ($a: its held wave); NULL: a waveguide port's, which the printer makes */
+    const char *reflect;  /* the wave it reflects ($a: its held wave); NULL only for what joins a root */
     const char *absorb;   /* a statement keeping the wave it takes in ($a) in a buffer of its own, or NULL */
     const char *stored;   /* what it stores (its voltage, its current), from its waves $a and $b */
     const char *energy;   /* statements adding its stored energy to E, $x being what it stores */
