@@ -112,7 +112,7 @@ void bench_fmt_db(char *buf, size_t cap, double e, const char *out);
  * the number of keys dropped, or -1 if the file cannot be written. */
 int bench_drop_solver_keys(const char *text, const char *path);
 /* Reads the netlist file at path, to be copied by bench_voice_dir:
- * returns its text (to be freed), or NULL after printing "PROG: cannot
+ * returns its text (in the compiler's arena: not to be freed), or NULL after printing "PROG: cannot
  * read PATH" on stderr.  If the netlist includes other files, notes
  * (bench_note) under its label that the copy may not find them. */
 char *bench_read_netlist(const char *prog, const char *path, const char *label);

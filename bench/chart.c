@@ -351,10 +351,8 @@ static void find_twins(void) {
                 break;
             }
     }
-    for (int k = 0; k < npoints; k++) {
-        free(text[k]);
+    for (int k = 0; k < npoints; k++) /* the compiler's arena holds them: dropped, not freed */
         text[k] = NULL;
-    }
 }
 
 /* Copies the file src to dst.  Returns 0, or -1. */
@@ -449,12 +447,10 @@ static int load_circuits(void) {
         }
         int made = tl_temp_dir(c->dir, "wdc-chart") == 0;
         snprintf(c->src, sizeof c->src, "%s/%s.wdn", c->dir, c->model);
-        if (!made || bench_drop_solver_keys(text, c->src) < 0) {
+        if (!made || bench_drop_solver_keys(text, c->src) < 0) { /* text: the compiler's arena's */
             fprintf(stderr, "chart: cannot write %s\n", c->src);
-            free(text);
             return -1;
         }
-        free(text);
         c->out = -1;
         for (int k = 0; k < c->cir->nouts; k++)
             if (!strcmp(c->cir->outs[k].name, "out"))
