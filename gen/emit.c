@@ -409,8 +409,9 @@ static StampArgs line_args(Ctx *x, int i, StampArgs g) {
         const Waveguide *wg = &x->c->wgs[w];
         g.m = format("%du", x->wv_size[w] - 1);
         if (e->side == 0) { /* reads the right-going line, writes the left-going one */
-            g.o = format("%d", R), g.p = format("%d", L), g.d = format("k_wk%d", tap);
-            g.q = e->pt == wg->ntaps + 1 ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
+            bool end = e->pt == wg->ntaps + 1; /* end b: its wave is the loop filters' output, no read */
+            g.o = format("%d", R), g.p = format("%d", L), g.d = end ? NULL : format("k_wk%d", tap);
+            g.q = end ? "t_pos" : format("(t_pos - (k_wNL%d - k_wk%d))", w, tap);
         } else {
             g.o = format("%d", L), g.p = format("%d", R);
             g.d = e->pt == 0 ? format("k_wNL%d", w) : format("(k_wNL%d - k_wk%d)", w, tap);
@@ -3458,7 +3459,7 @@ static int call_args(const char *text, const char *fn, const char **args, int ma
  * sample, an output's buffer or a solve's flag. */
 typedef struct LaneVar {
     const char *type, *name;
-    bool loaded; /* filled from the state before the samples (lanes past nl copy another) */
+    bool loaded; /* filled from the state before the samples (lanes past nl copy the last instance's) */
     bool out;    /* an output's pointer */
 } LaneVar;
 
@@ -3662,15 +3663,14 @@ static const char *batch_text(Ctx *x, const char *dirty) {
      * stores.  Otherwise (the states are in memory anyway) a loop over
      * the instances flushes those whose run ends. */
     bool flushes = fl.len > 0, each = !anys.len && wide;
-    /* Where every lane runs every statement, the lanes past nl copy the
-     * last instance (nl - 1).  A single output is then stored from every
+    /* The lanes past nl copy the last instance (nl - 1).  Where every
+     * lane runs every statement, a single output is then stored from every
      * lane, each copy storing its instance's own value again after it, by
      * a loop of constant count that compilers make a scatter or straight
      * stores (RC lowpass 0.87 -> 0.71 ns per voice-sample, tone stack
      * 1.68 -> 1.27, under gcc here); several outputs' stores stay a loop
      * over the instances, which measured faster for three under gcc than
      * any of the constant forms, scattered or not. */
-    const char *src = each ? "nl - 1" : "0";
     bool wide_out = each && x->c->nouts == 1;
     for (int i = 0; i < nvar && wide_out; i++)
         var[i].loaded = var[i].loaded || var[i].out;
@@ -3707,9 +3707,9 @@ static const char *batch_text(Ctx *x, const char *dirty) {
                     "            if (t_m)\n                for (int l = 0; l < nl; l++)\n"
                     "                    if (t_m >> l & 1) {\n%s                    }\n",
              deeper(in_lanes(str(&fl), &lane), 4));
-        if (wide) /* the lanes past nl take lane 0's flushed states: its copies, out of the subnormals */
-            emit(&body, "            if (t_m & 1u)\n                for (int l = nl; l < WDV_LANES; l++) {\n%s                }\n",
-                 deeper(replace_all(replace_all(in_lanes(str(&fl), &lane), "flush(", ""), "[l]);", "[0];"), 3));
+        if (wide) /* the lanes past nl take the last instance's flushed states: its copies, out of the subnormals */
+            emit(&body, "            if (t_m >> (nl - 1) & 1u)\n                for (int l = nl; l < WDV_LANES; l++) {\n%s                }\n",
+                 deeper(replace_all(replace_all(in_lanes(str(&fl), &lane), "flush(", ""), "[l]);", "[nl - 1];"), 3));
     }
     if (uses(str(&body), "in") || uses(str(&body), "out"))
         return fallback;
@@ -3750,11 +3750,11 @@ static const char *batch_text(Ctx *x, const char *dirty) {
                 emit(&b, "            %s\n", view[j]);
         emit(&b, "%s        }\n", parts[k]);
         if (k == 0 && wide) {
-            emit(&b, "        for (int l = nl; l < WDV_LANES; l++) { /* lanes past nl: copies of lane %s%s */\n", src,
-                 each ? "" : ", not stored");
+            emit(&b, "        for (int l = nl; l < WDV_LANES; l++) { /* lanes past nl: copies of lane nl - 1%s */\n",
+                 wide_out ? "" : ", not stored");
             for (int i = 0; i < nvar; i++)
                 if (var[i].loaded)
-                    emit(&b, "            t_ln.%s[l] = t_ln.%s[%s];\n", var[i].name, var[i].name, src);
+                    emit(&b, "            t_ln.%s[l] = t_ln.%s[nl - 1];\n", var[i].name, var[i].name);
             /* flushed with the lane they copy, they stay its copies (and out of the subnormals) */
             if (flushes && each)
                 emit(&b, "            for (int m = 0; m < FLUSH_RUN; m++)\n                t_fl[m][l] = t_fl[m][nl - 1];\n");
