@@ -594,11 +594,15 @@ static void check_float_promotion(Ctx *x, const char *cc) {
 
 static int have_clang = -1;
 
+/* The compiler under test: $WDC, else bin/wdc. */
+static const char *wdc_path(void) {
+    const char *wdc = getenv("WDC");
+    return wdc && *wdc ? wdc : "bin/wdc";
+}
+
 static void test_netlist(void **state) {
     const char *netlist = *state;
-    const char *wdc = getenv("WDC");
-    if (!wdc || !*wdc)
-        wdc = "bin/wdc";
+    const char *wdc = wdc_path();
     static const char *const precs[] = {"double", "float", "double"};
     int problems = 0;
     quiet = 0;
@@ -696,9 +700,7 @@ static void test_checkers_can_fail(void **state) {
  * accounting is in the voice only with --energy. */
 static void test_lean_rc(void **state) {
     (void)state;
-    const char *wdc = getenv("WDC");
-    if (!wdc || !*wdc)
-        wdc = "bin/wdc";
+    const char *wdc = wdc_path();
     for (int energy = 0; energy < 2; energy++) {
         char dir[] = "/tmp/wdc-lean-XXXXXX", log[64], src[96];
         if (!mkdtemp(dir))
