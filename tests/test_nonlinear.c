@@ -515,6 +515,57 @@ static void test_diode_single(void **state) {
     diode_solvers("netlists/diode_single.wdn");
 }
 
+/* One diode blocking hard (netlists/diode_single.wdn, every solver): a
+ * step of -100 V, -3 kV, then +3 kV and back to -3 kV through R1 = 1 kOhm
+ * into C1 = 22 nF.  Reverse, the closed form's omega(x) underflows for x
+ * below -745 (ln w = x there); the diode then passes -Is and the output
+ * settles at the step plus R1 Is.  Every sample finite; 2 ms (90 time
+ * constants) after each reverse step the output within 1e-12 of
+ * A + R1 Is relative to A, and the diode's current, which the voice takes
+ * from waves of about A, within 16 ulp of A / R1 of -Is. */
+static void test_diode_reverse(void **state) {
+    (void)state;
+    static const char *const solvers[] = {"fast", "newton", "omega", "pwl"};
+    static const double steps[] = {-100, -3000, 3000, -3000};
+    const double R = 1000, Is = 2.52e-9;
+    for (int k = 0; k < 4; k++) {
+        const char *args[] = {"--solver", solvers[k], NULL};
+        tl_voice v;
+        if (tl_voice_build_args("netlists/diode_single.wdn", 0, args, NULL, &v) != 0)
+            fail_msg("diode_single --solver %s: the voice could not be built", solvers[k]);
+        assert_int_equal(v.cls->n_inputs, 1);
+        assert_int_equal(v.cls->n_outputs, 2);
+        void *st = tl_state_new(v.cls, 48000);
+        assert_non_null(st);
+        enum { N = 96 }; /* 2 ms */
+        double in[N], out[N], id[N], worst = 0;
+        long bad = 0;
+        for (int j = 0; j < 4; j++) {
+            for (int n = 0; n < N; n++)
+                in[n] = steps[j];
+            const double *ip[1] = {in};
+            double *op[2] = {out, id};
+            v.cls->process(st, ip, op, N);
+            for (int n = 0; n < N; n++)
+                bad += !isfinite(out[n]) || !isfinite(id[n]);
+            if (steps[j] < 0) {
+                double e = fabs(out[N - 1] - (steps[j] + R * Is)) / -steps[j], ti = 16 * DBL_EPSILON * -steps[j] / R;
+                worst = e > worst ? e : worst;
+                if (!(e <= 1e-12) || !(fabs(id[N - 1] + Is) <= ti))
+                    print_error("--solver %s, %g V: out %.17g (want %.17g), id %.17g (want %.17g)\n", solvers[k],
+                                steps[j], out[N - 1], steps[j] + R * Is, id[N - 1], -Is);
+                assert_true(e <= 1e-12);
+                assert_true(fabs(id[N - 1] + Is) <= ti);
+            }
+        }
+        printf("diode_single --solver %-6s blocking 100 V and 3 kV: %ld samples not finite, worst settling error "
+               "%.2g\n", solvers[k], bad, worst);
+        assert_int_equal(bad, 0);
+        tl_state_free(st);
+        tl_voice_free(&v);
+    }
+}
+
 /* ---- 1b. the fast solver across its range ---- */
 
 /* diode_fast (templates/nl_fast.c.tmpl), sample by sample: c = R Is / nVt
@@ -1279,6 +1330,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_diode_clipper),
         cmocka_unit_test(test_diode_single),
+        cmocka_unit_test(test_diode_reverse),
         cmocka_unit_test(test_fast_bound),
         cmocka_unit_test(test_fast_silence),
         cmocka_unit_test(test_fast_range),
