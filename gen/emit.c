@@ -5,6 +5,7 @@
  * all of it succeeded.  The sample loop is straight-line code: a forward
  * pass computing the waves each subtree reflects towards the root, the
  * root's matrix, and a backward pass sending waves down to the leaves. */
+#include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -2898,6 +2899,10 @@ static const struct {
                    " * (t is 0): one test without branches in every lane and every frame, so\n"
                    " * that the loop over the lanes is vectorised whole */\n"
                    "static real flush_lane(real t, real x) { return fabs(x) < t ? (real)0 : x; }\n"},
+    {"wrapfree", "/* line + q, for a loop that reads or writes position q of a line of `size`\n"
+                 " * from frame n on; *se becomes the frame before which it stays on the line */\n"
+                 "static real *wrapfree(real *line, unsigned q, unsigned size, int n, int *se) {\n"
+                 "    if ((unsigned)(*se - n) > size - q)\n        *se = n + (int)(size - q);\n    return line + q;\n}\n"},
     {"line_err", "/* e, or if larger the error in cents of a delay of t samples held as d\n"
                  " * (update's, rounded to whole samples from 1 to cap); INFINITY where it\n"
                  " * cannot be held: shorter than half a sample, or longer than its line */\n"
@@ -3808,12 +3813,132 @@ static const char *tuning_text(Ctx *x) {
     return str(&b);
 }
 
+/* ---- wrap-free segments ----
+ *
+ * A line's positions are masked into its buffer at every read and write.
+ * process instead steps through segments of frames in which no position
+ * that the loops read or write wraps: at a segment's first frame each
+ * position becomes a pointer (t_lK, from wrapfree), and frame n reads
+ * t_lK[n - t_s0].  The arithmetic is the same; the masks go. */
+
+typedef struct {
+    const char *text; /* the access as printed: s_wv[OFF + ((t_pos - D) & M)] */
+    const char *at;   /* its position, (t_pos - D) & M */
+    const char *arr;  /* s_wv or s_dl */
+    const char *line; /* its region: s_wv + OFF */
+    unsigned size;    /* M + 1 */
+} LinePos;
+
+/* True if the n characters at d make a delay that stays put through a
+ * call of process: names k_*, numbers, parentheses, + and -. */
+static bool steady_delay(const char *d, size_t n) {
+    for (size_t i = 0; i < n;) {
+        if (isalpha((unsigned char)d[i]) || d[i] == '_') {
+            if (strncmp(d + i, "k_", 2))
+                return false;
+            while (i < n && (isalnum((unsigned char)d[i]) || d[i] == '_'))
+                i++;
+        } else if (isdigit((unsigned char)d[i]) || strchr(" ()+-", d[i]))
+            i++;
+        else
+            return false;
+    }
+    return n > 0;
+}
+
+/* The length of the line access at p (s_wv[OFF + (t_pos & M)] or
+ * s_wv[OFF + ((t_pos - D) & M)], or s_dl's) with *lp filled in; 0 if p
+ * starts none. */
+static size_t line_access(const char *p, LinePos *lp) {
+    const char *q = p;
+    if (strncmp(q, "s_wv[", 5) && strncmp(q, "s_dl[", 5))
+        return 0;
+    q += 5;
+    const char *off = q;
+    while (isdigit((unsigned char)*q))
+        q++;
+    if (q == off || strncmp(q, " + (", 4))
+        return 0;
+    size_t noff = (size_t)(q - off);
+    q += 4;
+    const char *at = q, *d = NULL;
+    size_t nd = 0;
+    if (!strncmp(q, "t_pos & ", 8))
+        q += 8;
+    else if (!strncmp(q, "(t_pos - ", 9)) {
+        d = q += 9;
+        for (int depth = 0; *q && !(*q == ')' && depth == 0); q++)
+            depth += *q == '(' ? 1 : *q == ')' ? -1 : 0;
+        nd = (size_t)(q - d);
+        if (*q != ')' || strncmp(q, ") & ", 4) || !steady_delay(d, nd))
+            return 0;
+        q += 4;
+    } else
+        return 0;
+    const char *m = q;
+    unsigned long mask = strtoul(m, (char **)&q, 10);
+    if (q == m || strncmp(q, "u)]", 3) || mask == 0 || mask >= 1ul << 30 || (mask & (mask + 1)))
+        return 0;
+    size_t nat = (size_t)(q + 1 - at);
+    q += 3;
+    const char *arr = format("%.4s", p);
+    *lp = (LinePos){format("%.*s", (int)(q - p), p), format("%.*s", (int)nat, at), arr,
+                    noff == 1 && *off == '0' ? arr : format("%s + %.*s", arr, (int)noff, off), (unsigned)mask + 1};
+    return (size_t)(q - p);
+}
+
+/* texts[0..n) with each line access turned into its segment pointer's;
+ * *open gets the statements that start a segment, *decl the pointers'
+ * declarations.  False (texts untouched) if they have none. */
+static bool segment_lines(const char **texts, int n, Buf *open, Buf *decl) {
+    LinePos *pos = NULL;
+    int npos = 0, cap = 0;
+    for (int t = 0; t < n; t++) {
+        Buf b = {0};
+        for (const char *p = texts[t]; *p;) {
+            LinePos lp;
+            size_t len = line_access(p, &lp);
+            if (!len) {
+                buf_put(&b, p, 1);
+                p++;
+                continue;
+            }
+            int k = 0;
+            while (k < npos && strcmp(pos[k].text, lp.text))
+                k++;
+            if (k == npos) {
+                pos = grow(pos, npos, &cap, sizeof *pos);
+                pos[npos++] = lp;
+            }
+            emit(&b, "t_l%d[n - t_s0]", k);
+            p += len;
+        }
+        texts[t] = str(&b);
+    }
+    if (!npos)
+        return false;
+    emit(decl, "    int t_s0 = 0, t_se = 0; /* the segment: its first frame and the frame past it */\n    real ");
+    emit(open, "        if (n == t_se) { /* a segment in which no line position wraps */\n"
+               "            t_s0 = n, t_se = nframes;\n");
+    for (int k = 0; k < npos; k++) {
+        emit(decl, "%s*t_l%d = %s", k ? ", " : "", k, pos[k].arr);
+        emit(open, "            t_l%d = wrapfree(%s, %s, %uu, n, &t_se);\n", k, pos[k].line, pos[k].at, pos[k].size);
+    }
+    emit(decl, ";\n");
+    emit(open, "        }\n");
+    return true;
+}
+
 static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     Names live = {0};
     const char *sample = sample_text(x, &live);
     const char *idle = x->nidle ? idle_text(x, &live) : "";
-    Buf decl = {0}, wb = {0}, fl = {0};
+    Buf decl = {0}, wb = {0}, fl = {0}, open = {0}, seg = {0};
+    const char *loops[] = {sample, idle};
+    bool segs = segment_lines(loops, 2, &open, &seg);
+    sample = loops[0], idle = loops[1];
     print_locals(x, &live, &decl, &wb, &fl);
+    emit(&decl, "%s", str(&seg));
     /* runs of FLUSH_RUN samples are counted across calls (s_run), so the
      * states are flushed at the same samples however a host splits its
      * calls */
@@ -3822,18 +3947,20 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
         decl_run(&decl, &wb, &fl);
     }
     const char *head = format("%s%s", dirty, str(&decl));
-    const char *parts[] = {head, idle, sample, str(&fl), str(&wb)}; /* what process holds */
-    if (uses_any(parts, 5, "st"))
+    const char *parts[] = {head, idle, sample, str(&fl), str(&wb), str(&open)}; /* what process holds */
+    if (uses_any(parts, 6, "st"))
         parts[0] = head = format("    state *st = vst;\n%s", head);
     static const char *const decls[] = {"void *vst", "const double *const *in", "double *const *out"};
     static const char *const names[] = {"vst", "in", "out"};
-    set(t, "process_args", format("%s, int nframes", params_of(parts, 5, 3, decls, names)));
+    set(t, "process_args", format("%s, int nframes", params_of(parts, 6, 3, decls, names)));
     set(t, "hoist", head);
     set(t, "sample", sample);
     set(t, "idle", idle);
     set(t, "flush", str(&fl));
-    set(t, "run_end", x->flushes ? "nframes - n > (int)(FLUSH_RUN - t_run) ? n + (int)(FLUSH_RUN - t_run) : nframes"
-                                 : "nframes - n > FLUSH_RUN ? n + FLUSH_RUN : nframes");
+    const char *last = segs ? "t_se" : "nframes";
+    set(t, "segment", str(&open));
+    set(t, "run_end", x->flushes ? format("%s - n > (int)(FLUSH_RUN - t_run) ? n + (int)(FLUSH_RUN - t_run) : %s", last, last)
+                                 : format("%s - n > FLUSH_RUN ? n + FLUSH_RUN : %s", last, last));
     set(t, "run_count", x->flushes ? "        t_run += (unsigned)(t_end - n);\n" : "");
     set(t, "writeback", str(&wb));
     set(t, "batch", x->opt->batch ? batch_text(x, dirty) : "");

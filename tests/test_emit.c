@@ -722,6 +722,43 @@ static void test_lean_rc(void **state) {
     }
 }
 
+/* Wrap-free segments: in process, every line position that the loops
+ * read or write is a segment's pointer (wrapfree), none is masked at each
+ * frame: a string with its taps, the idle hammers' loop and a
+ * transmission line. */
+static void test_segments(void **state) {
+    (void)state;
+    static const char *const nets[][2] = {{"netlists/pluck.wdn", "pluck"},
+                                          {"tests/nets/hammers_eight.wdn", "hammers_eight"},
+                                          {"netlists/clipper_line.wdn", "clipper_line"}};
+    for (size_t i = 0; i < sizeof nets / sizeof nets[0]; i++) {
+        char dir[] = "/tmp/wdc-seg-XXXXXX", log[64], src[96];
+        if (!mkdtemp(dir))
+            fail_msg("mkdtemp: %s", strerror(errno));
+        snprintf(log, sizeof log, "%s/wdc.log", dir);
+        snprintf(src, sizeof src, "%s/%s.c", dir, nets[i][1]);
+        char *argv[] = {(char *)wdc_path(), (char *)nets[i][0], "-o", dir, NULL};
+        assert_int_equal(run_logged(argv, log), 0);
+        char *c = slurp(src);
+        assert_non_null(c);
+        const char *p = strstr(c, "static void voice_process(");
+        assert_non_null(p);
+        const char *end = strstr(p, "\n}\n");
+        assert_non_null(end);
+        int segs = 0, masked = 0;
+        for (const char *q = p; q < end; q++) {
+            segs += !strncmp(q, "wrapfree(", 9);
+            if (!strncmp(q, "s_wv[", 5) || !strncmp(q, "s_dl[", 5))
+                masked++, print_error("%s: %.60s\n", nets[i][0], q);
+        }
+        printf("%-30s %d positions in segments, %d masked in the loops\n", nets[i][0], segs, masked);
+        assert_true(segs > 0);
+        assert_int_equal(masked, 0);
+        free(c);
+        tl_remove_dir(dir);
+    }
+}
+
 int main(void) {
     have_clang = on_path("clang");
     if (!have_clang)
@@ -729,6 +766,7 @@ int main(void) {
     const struct CMUnitTest fixed[] = {
         {.name = "checkers_can_fail", .test_func = test_checkers_can_fail},
         {.name = "lean_rc", .test_func = test_lean_rc},
+        {.name = "segments", .test_func = test_segments},
     };
-    return tl_run_per_netlist("emit", test_netlist, fixed, 2);
+    return tl_run_per_netlist("emit", test_netlist, fixed, 3);
 }
