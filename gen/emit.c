@@ -763,13 +763,14 @@ static void emit_waveguides(Ctx *x) {
                 continue;
             const char *sg = g->term[e] == 'c' ? "" : "-";
             /* one flush in the loop: at end b, through which every wave
-             * passes once a round trip, or at end a where end b is joined */
+             * passes once a round trip (after the run, emit_hoist), or at
+             * end a where end b is joined */
             if (e == 0) {
                 const char *wave = format("%ss_wv[%d + ((t_pos - k_wNL%d) & %du)]", sg, L, w, m);
                 put(x, NULL, "        s_wv[%d + (t_pos & %du)] = %s; /* end a */\n", R, m,
                     g->end[1] ? format("flush(%s)", wave) : wave);
             } else
-                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = flush(%st_wb%d); /* end b */\n", L, m, sg, w);
+                put(x, NULL, "        s_wv[%d + (t_pos & %du)] = %st_wb%d; /* end b */\n", L, m, sg, w);
         }
     }
 }
@@ -1709,9 +1710,19 @@ static void emit_hoist(Ctx *x) {
     }
     for (int w = 0; w < c->nwgs; w++) {
         int f0 = x->wf_off[w], nl = 1 + c->wgs[w].nrad;
+        /* the waves end b wrote in the run: flushed one by one once the
+         * loop filter's state is (a wave below FLUSH_BELOW comes only from
+         * a quiet loop, and that state follows the loop's level) */
+        int L = x->wv_off[w] + x->wv_size[w], m = x->wv_size[w] - 1;
+        const char *quiet = c->wgs[w].end[1] ? ""
+                            : format("        if (s_wf%d == 0) /* a quiet loop: the waves end b wrote in the run */\n"
+                                     "            for (unsigned j = 1; j <= FLUSH_RUN; j++)\n"
+                                     "                s_wv[%d + ((t_pos - j) & %du)] = flush(s_wv[%d + ((t_pos - j) & %du)]);\n",
+                                     f0, L, m, L, m);
         for (int f = f0; f < f0 + nl; f++) { /* one-poles: locals */
             local(x, format("s_wf%d", f), format("    real s_wf%d = st->s_wf[%d];\n", f, f),
-                  format("    st->s_wf[%d] = s_wf%d;\n", f, f), format("        s_wf%d = flush(s_wf%d);\n", f, f));
+                  format("    st->s_wf[%d] = s_wf%d;\n", f, f),
+                  format("        s_wf%d = flush(s_wf%d);\n%s", f, f, f == f0 ? quiet : ""));
             local(x, format("s_wq%d", f), format("    real s_wq%d = st->s_wfp[%d];\n", f, f),
                   format("    st->s_wfp[%d] = s_wq%d;\n", f, f), format("        s_wq%d = flush(s_wq%d);\n", f, f));
         }
