@@ -3903,26 +3903,45 @@ static size_t line_access(const char *p, LinePos *lp) {
  * declarations.  False (texts untouched) if they have none. */
 static bool segment_lines(const char **texts, int n, Buf *open, Buf *decl) {
     LinePos *pos = NULL;
-    int npos = 0, cap = 0;
+    int npos = 0, cap = 0, nslot = 0, *slot = NULL; /* slot: open addressing over pos by text */
     for (int t = 0; t < n; t++) {
         Buf b = {0};
         for (const char *p = texts[t]; *p;) {
+            const char *s = strstr(p, "s_");
+            if (!s) {
+                buf_put(&b, p, strlen(p));
+                break;
+            }
+            buf_put(&b, p, (size_t)(s - p));
             LinePos lp;
-            size_t len = line_access(p, &lp);
+            size_t len = line_access(s, &lp);
             if (!len) {
-                buf_put(&b, p, 1);
-                p++;
+                buf_put(&b, s, 2);
+                p = s + 2;
                 continue;
             }
-            int k = 0;
-            while (k < npos && strcmp(pos[k].text, lp.text))
-                k++;
-            if (k == npos) {
-                pos = grow(pos, npos, &cap, sizeof *pos);
-                pos[npos++] = lp;
+            if (2 * (npos + 1) > nslot) { /* grow the table, rehash */
+                nslot = nslot ? 2 * nslot : 64;
+                slot = arena_alloc(sizeof(int) * (size_t)nslot);
+                for (int k = 0; k < nslot; k++)
+                    slot[k] = -1;
+                for (int k = 0; k < npos; k++) {
+                    unsigned h = name_hash(pos[k].text, strlen(pos[k].text)) & (unsigned)(nslot - 1);
+                    while (slot[h] >= 0)
+                        h = (h + 1) & (unsigned)(nslot - 1);
+                    slot[h] = k;
+                }
             }
-            emit(&b, "t_l%d[n - t_s0]", k);
-            p += len;
+            unsigned h = name_hash(lp.text, strlen(lp.text)) & (unsigned)(nslot - 1);
+            while (slot[h] >= 0 && strcmp(pos[slot[h]].text, lp.text))
+                h = (h + 1) & (unsigned)(nslot - 1);
+            if (slot[h] < 0) {
+                pos = grow(pos, npos, &cap, sizeof *pos);
+                pos[npos] = lp;
+                slot[h] = npos++;
+            }
+            emit(&b, "t_l%d[n - t_s0]", slot[h]);
+            p = s + len;
         }
         texts[t] = str(&b);
     }
