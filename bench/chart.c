@@ -339,7 +339,7 @@ static int voice_compile(const Point *p) {
  * same netlist, solver and precision at another rate, where the compiler
  * bakes nothing of the rate in) at that one: it is compiled once. */
 static void find_twins(void) {
-    static char *text[MAXPOINTS];
+    static char *text[MAXPOINTS]; /* the emitted sources, in the compiler's arena: not freed */
     for (int k = 0; k < npoints; k++) {
         Point *p = &points[k];
         char csrc[256], so[256];
@@ -351,8 +351,6 @@ static void find_twins(void) {
                 break;
             }
     }
-    for (int k = 0; k < npoints; k++) /* the compiler's arena holds them: dropped, not freed */
-        text[k] = NULL;
 }
 
 /* Copies the file src to dst.  Returns 0, or -1. */
