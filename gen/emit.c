@@ -288,6 +288,16 @@ typedef struct Ctx {
      * such contact stays open */
     bool *idle;      /* root -> idle root */
     int nidle;
+    bool skip;       /* process has the loop that skips them (not --no-skip, --energy) */
+    /* an idle root's contact travels in chunks while every such contact
+     * is open (chunk_texts): nonlinear index -> the plan that starts one,
+     * its end, and its cut at the frame t_q */
+    const char **ck_plan, **ck_end, **ck_cut;
+    /* strings whose taps never scatter while the idle contacts are open
+     * and that an idle contact reads: their lines keep running sums
+     * (s_wP, and of sizes s_wA), so a chunk's sums take four reads */
+    bool *wg_sum;
+    bool anysum;
     int nic;         /* strike targets that set something (ic_targets) */
     int own;         /* the root the statements being put compute, -1: none */
     char phase;      /* their phase (Stmt.phase) */
@@ -916,8 +926,6 @@ static bool contact_gates(Ctx *x, int k) {
 static void find_idle(Ctx *x) {
     const Wdf *w = x->w;
     x->idle = arena_alloc(sizeof(bool) * (size_t)(w->nroots + 1));
-    if (x->energy || x->opt->no_skip)
-        return;
     for (int b = 0; b < w->nroots; b++) {
         const Root *r = &w->roots[b];
         int k = x->nl_first[b];
@@ -942,6 +950,15 @@ static void find_idle(Ctx *x) {
         x->idle[b] = ok;
         x->nidle += ok;
     }
+    x->skip = x->nidle && !x->energy && !x->opt->no_skip;
+}
+
+/* True if nonlinear edge k is the contact of an idle root. */
+static bool idle_contact(const Ctx *x, int k) {
+    for (int b = 0; b < x->w->nroots; b++)
+        if (x->idle[b] && x->nl_first[b] == k)
+            return true;
+    return false;
 }
 
 /* The wave a nonlinear edge reflects, from the wave the root sends it. */
@@ -973,19 +990,22 @@ static void emit_nl_solve(Ctx *x, int k) {
                                    dbl(x, format("k_Rn%d", k)), dbl(x, format("s_nv%d", k)),
                                    dbl(x, format("s_nf%d", k)), tol, it);
         emit(&o, "            const el_law t_L = %s;\n", el_law_init(k, nl, true));
+        /* an idle contact in a chunk is open, its travel the chunk's */
+        bool ck = idle_contact(x, k);
+        const char *inck = ck ? format("s_ck%d > 0 || ", k) : "", *step = ck ? format("if (s_ck%d == 0)\n    ", k) : "";
         if (nl->kind == NL_CONTACT) /* open with no force left, and staying open at v = a: a passes */
             emit(&o, "            const double t_X = %s - c_nl%d_3;\n"
-                     "            const double t_v = s_nf%d == 0 && !(t_X > 0) && !(t_X + 0.5 * k_T * %s > 0)\n"
-                     "                                   ? (double)t_an%d : %s;\n", dbl(x, format("s_nX%d", k)), k, k,
-                 dbl(x, format("(t_an%d + s_nv%d)", k, k)), k, solve);
+                     "            const double t_v = %s%ss_nf%d == 0 && !(t_X > 0) && !(t_X + 0.5 * k_T * %s > 0)%s\n"
+                     "                                   ? (double)t_an%d : %s;\n", dbl(x, format("s_nX%d", k)), k,
+                 inck, ck ? "(" : "", k, dbl(x, format("(t_an%d + s_nv%d)", k, k)), ck ? ")" : "", k, solve);
         else
             emit(&o, "            const double t_X = %s;\n            const double t_v = %s;\n", dbl(x, format("s_nX%d", k)),
                  solve);
-        emit(&o, "            s_nX%d += k_hT * (real)(t_v + %s);\n", k, dbl(x, format("s_nv%d", k)));
+        emit(&o, "            %ss_nX%d += k_hT * (real)(t_v + %s);\n", step, k, dbl(x, format("s_nv%d", k)));
         if (gates)
             emit(&o, "            t_open%d = t_v == (double)t_an%d; /* no force: the contact is open */\n", k, k);
         emit(&o, "            s_nf%d = (real)((%s - t_v) / %s);\n", k, an, dbl(x, format("k_Rn%d", k)));
-        emit(&o, "            s_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n        }\n", k, k, an);
+        emit(&o, "            %ss_nv%d = (real)t_v;\n            t_bn%d = (real)(2 * t_v - %s);\n        }\n", step, k, k, an);
         put(x, NULL, "%s", str(&o));
         return;
     }
@@ -1616,6 +1636,312 @@ static const char *deeper(const char *text, int levels) {
     return str(&b);
 }
 
+/* ---- an open contact's travel in chunks ----
+ *
+ * While every idle root's contact is open, each such contact's travel
+ * (its compression X and the velocity v across it) is advanced a chunk
+ * of frames at a time, in process and in the skipping loop alike: its
+ * incident wave is linear in the waves its string ports read (weights
+ * alpha) and its masses' held waves (kappa, their sum), so the
+ * trapezoidal sum over a chunk needs only the sum of the waves each port
+ * reads in it.  A chunk starts (plan) only where those waves are all
+ * known: written already, and no tap that scatters (a damper, a contact
+ * that is not idle) lies between them and the port; the plan bounds the
+ * travel through the chunk by the sizes of those waves and starts it
+ * only if the contact stays open throughout.  A contact that meets ends
+ * every chunk (cut) where it meets; params and strikes end them first.
+ * Skipping or not, every voice computes the same chunks: their samples
+ * are the same to the bit. */
+
+/* A string port that an idle contact's incident wave reads. */
+typedef struct CkPort {
+    int elem;           /* its E_S element */
+    const char *alpha;  /* its weight in the incident wave (double) */
+} CkPort;
+
+/* The weight of tree node i's reflected wave in its root's tree: the
+ * product of the adaptor coefficients from it to the root port. */
+static const char *path_weight(Ctx *x, const WNode *n) {
+    Buf b = {0};
+    int sign = 1;
+    for (; n->parent; n = n->parent) {
+        const WNode *p = n->parent;
+        int k = 0;
+        while (p->child[k] != n)
+            k++;
+        sign *= p->pol[k] > 0 ? 1 : -1;
+        if (p->kind != W_SERIES)
+            emit(&b, " * (double)c_k%d", x->koff[p->id] + k);
+    }
+    return format("%s1.0%s", sign < 0 ? "-" : "", str(&b));
+}
+
+/* True if tap t (global index) of string w may scatter while every idle
+ * root's contact is open: something other than idle contacts meets there. */
+static bool tap_writes(Ctx *x, int w, int t) {
+    for (int i = 0; i < x->c->nelems; i++) {
+        const Elem *e = &x->c->elems[i];
+        if (e->kind != E_S || e->wg != w || e->pt != t - x->wt_off[w] + 1)
+            continue;
+        int open[64], nopen, kind = tap_kind(x, i, open, &nopen);
+        if (kind == 1)
+            return false;
+        if (kind == 0)
+            return true;
+        for (int j = 0; j < nopen; j++) {
+            int r = -1;
+            for (int b = 0; b < x->w->nroots; b++)
+                if (x->nl_first[b] == open[j] && x->w->roots[b].nnl == 1)
+                    r = b;
+            if (r < 0 || !x->idle[r])
+                return true;
+        }
+        return false;
+    }
+    return false;
+}
+
+/* The frames from now on whose waves port e (a string's port at a tap)
+ * knows: it lowers t_w to them. */
+static const char *port_reach(Ctx *x, const Elem *e) {
+    const Waveguide *g = &x->c->wgs[e->wg];
+    int w = e->wg, T = x->wt_off[w] + e->pt - 1;
+    Buf b = {0}, ext = {0};
+    if (e->side == 0) { /* the right-going line, from end a */
+        Buf wr = {0};
+        for (int j = 0; j < g->ntaps; j++) {
+            int J = x->wt_off[w] + j;
+            if (!tap_writes(x, w, J))
+                continue;
+            emit(&wr, "                if (k_wk%d < k_wk%d) {\n                    if (k_wk%d - k_wk%d < t_u)\n"
+                      "                        t_u = k_wk%d - k_wk%d;\n                    t_lo = 1;\n"
+                      "                } else if (k_wk%d == k_wk%d)\n                    t_u = 0;\n",
+                 J, T, T, J, T, J, J, T);
+            emit(&ext, "                    if (k_wk%d < t_x)\n                        t_x = k_wk%d;\n", J, J);
+        }
+        emit(&b, "                unsigned t_u = k_wk%d;\n%s%s", T, wr.len ? "                int t_lo = 0;\n" : "", str(&wr));
+        if (!g->end[0]) /* end a reflects what the left-going line brings it */
+            emit(&b, "                if (%st_u > 0) {\n                    unsigned t_x = k_wNL%d;\n%s"
+                     "                    t_u += t_x;\n                }\n", wr.len ? "!t_lo && " : "", w, str(&ext));
+    } else { /* the left-going line, from end b */
+        emit(&b, "                unsigned t_u = k_wNL%d - k_wk%d;\n", w, T);
+        for (int j = 0; j < g->ntaps; j++) {
+            int J = x->wt_off[w] + j;
+            if (!tap_writes(x, w, J))
+                continue;
+            emit(&b, "                if (k_wk%d > k_wk%d) {\n                    if (k_wk%d - k_wk%d < t_u)\n"
+                     "                        t_u = k_wk%d - k_wk%d;\n                } else if (k_wk%d == k_wk%d)\n"
+                     "                    t_u = 0;\n", J, T, J, T, J, T, J, T);
+        }
+    }
+    emit(&b, "                if (t_u < t_w)\n                    t_w = t_u;\n");
+    return str(&b);
+}
+
+/* The arguments of port_window and port_wave for port e before the
+ * frame: its line, the other line, the mask, its delay, the other's
+ * delay to end a and end a's reflection. */
+static const char *port_args(Ctx *x, const Elem *e) {
+    const Waveguide *g = &x->c->wgs[e->wg];
+    int w = e->wg, T = x->wt_off[w] + e->pt - 1, R = x->wv_off[w], L = R + x->wv_size[w], m = x->wv_size[w] - 1;
+    if (e->side == 0)
+        return format("s_wv + %d, s_wv + %d, %du, k_wk%d, k_wNL%d, %s", R, L, m, T, w,
+                      g->end[0] ? "0.0" : g->term[0] == 'c' ? "1.0" : "-1.0");
+    return format("s_wv + %d, s_wv + %d, %du, k_wNL%d - k_wk%d, 0u, 0.0", L, L, m, w, T);
+}
+
+/* port_sum's arguments for port e's sums. */
+static const char *port_sargs(Ctx *x, const Elem *e) {
+    const Waveguide *g = &x->c->wgs[e->wg];
+    int w = e->wg, T = x->wt_off[w] + e->pt - 1, R = x->wv_off[w], L = R + x->wv_size[w], m = x->wv_size[w] - 1;
+    if (e->side == 0)
+        return format("s_wP + %d, s_wA + %d, s_wP + %d, s_wA + %d, %du, k_wk%d, k_wNL%d, %s", R, R, L, L, m, T, w,
+                      g->end[0] ? "0.0" : g->term[0] == 'c' ? "1.0" : "-1.0");
+    return format("s_wP + %d, s_wA + %d, s_wP + %d, s_wA + %d, %du, k_wNL%d - k_wk%d, 0u, 0.0", L, L, L, L, m, w, T);
+}
+
+/* Marks the strings whose lines keep running sums (wg_sum). */
+static void find_sums(Ctx *x) {
+    x->wg_sum = arena_alloc(sizeof(bool) * (size_t)(x->c->nwgs + 1));
+    for (int i = 0; i < x->w->nnodes; i++) {
+        const WNode *n = x->w->nodes[i];
+        if (n->kind != W_LEAF || !x->idle[n->root] || x->c->elems[n->elem].kind != E_S)
+            continue;
+        int w = x->c->elems[n->elem].wg;
+        bool clean = true;
+        for (int j = 0; j < x->c->wgs[w].ntaps && clean; j++)
+            clean = !tap_writes(x, w, x->wt_off[w] + j);
+        x->wg_sum[w] = clean;
+        x->anysum |= clean;
+    }
+}
+
+static void chunk_texts(Ctx *x) {
+    find_sums(x);
+    int nnl = x->nnl > 0 ? x->nnl : 1;
+    x->ck_plan = arena_alloc(sizeof(char *) * (size_t)nnl);
+    x->ck_end = arena_alloc(sizeof(char *) * (size_t)nnl);
+    x->ck_cut = arena_alloc(sizeof(char *) * (size_t)nnl);
+    for (int b = 0; b < x->w->nroots; b++) {
+        if (!x->idle[b])
+            continue;
+        int k = x->nl_first[b];
+        const Elem *ce = nl_elem(x, k);
+        /* the incident wave: M[1][0] times the tree's reflected wave */
+        Buf mt = {0};
+        mterm(x, &mt, b, 1, 0, "1");
+        const char *mc = x->mzero[b][1 * x->w->roots[b].nedge + 0] ? "0.0" : format("(double)(%s)", str(&mt));
+        CkPort *port = arena_alloc(sizeof(CkPort) * (size_t)(x->w->nnodes + 1));
+        int np = 0;
+        Buf kap = {0};
+        for (int i = 0; i < x->w->nnodes; i++) {
+            const WNode *n = x->w->nodes[i];
+            if (n->root != b || n->kind != W_LEAF)
+                continue;
+            const Elem *e = &x->c->elems[n->elem];
+            const char *wt = format("%s * %s", mc, path_weight(x, n));
+            if (e->kind == E_S) {
+                if (roams(x, e))
+                    wt = format("(k_won%d ? %s : 0.0)", x->wt_off[e->wg] + e->pt - 1, wt);
+                port[np++] = (CkPort){n->elem, wt};
+            } else if (x->react[i] >= 0) {
+                const char *bm = stamp(x, prims[e->kind].reflect,
+                                       line_args(x, n->elem, (StampArgs){.a = format("s_a%d", x->react[i]),
+                                                                          .R = format("k_R%d", i)}));
+                emit(&kap, " + %s * (double)(%s)", wt, bm);
+            }
+        }
+        Buf w8 = {0}, pre = {0};
+        bool pwin = false;
+        emit(&pre, "                const double t_ka = 0.0%s;\n", str(&kap));
+        for (int q = 0; q < np; q++)
+            emit(&pre, "                const double t_al%d = %s;\n", q, port[q].alpha);
+        /* plan: the frames ahead the contact is known to stay open */
+        Buf p = {0};
+        emit(&p, "            if (s_ck%d == 0) { /* %s (%s:%d:%d): how long its travel stays open */\n"
+                 "                unsigned t_w = 1u << 20;\n",
+             k, ce->name, ce->pos.file->path, ce->pos.line, ce->pos.col);
+        for (int q = 0; q < np; q++) {
+            const Elem *e = &x->c->elems[port[q].elem];
+            const char *reach = port_reach(x, e);
+            if (roams(x, e))
+                emit(&p, "                if (k_won%d) {\n%s                }\n", x->wt_off[e->wg] + e->pt - 1,
+                     deeper(reach, 1));
+            else
+                emit(&p, "                {\n%s                }\n", deeper(reach, 1));
+        }
+        /* ending with a run of FLUSH_RUN frames: the skipping loop's batches are whole runs */
+        emit(&p, "                if (((t_pos + t_w) & ~(FLUSH_RUN - 1u)) - t_pos - 1u < t_w)\n"
+                 "                    t_w = ((t_pos + t_w) & ~(FLUSH_RUN - 1u)) - t_pos;\n");
+        emit(&p, "%s", str(&pre));
+        emit(&p, "                const double t_X = %s - c_nl%d_3, t_nv = %s;\n", dbl(x, format("s_nX%d", k)), k,
+             dbl(x, format("s_nv%d", k)));
+        emit(&p, "                double t_S = t_ka * t_w, t_A = fabs(t_ka) * t_w, t_E = t_ka, t_m;\n"
+                 "                if (t_w > 0) {\n");
+        for (int q = 0; q < np; q++) {
+            const Elem *e = &x->c->elems[port[q].elem];
+            const char *a = port_args(x, e);
+            if (x->wg_sum[e->wg])
+                emit(&p, "                    if (t_al%d != 0) {\n"
+                         "                        t_S += t_al%d * port_sum(%s, t_pos, t_pos - 1u, t_w, &t_m);\n"
+                         "                        t_A += fabs(t_al%d) * t_m;\n"
+                         "                        t_E += t_al%d * port_wave(%s, t_pos + t_w - 1u, t_pos - 1u);\n"
+                         "                    }\n", q, q, port_sargs(x, e), q, q, a);
+            else
+                emit(&p, "                    if (t_al%d != 0) {\n"
+                         "                        t_S += t_al%d * port_window(%s, t_pos, t_pos - 1u, t_w, &t_m);\n"
+                         "                        t_A += fabs(t_al%d) * t_m;\n"
+                         "                        t_E += t_al%d * port_wave(%s, t_pos + t_w - 1u, t_pos - 1u);\n"
+                         "                    }\n", q, q, a, q, q, a);
+            emit(&w8, "                        t_a1 += t_al%d * port_wave(%s, t_pos, t_pos - 1u);\n", q, a);
+            pwin = true;
+        }
+        (void)pwin;
+        emit(&p, "                    /* the travel through the chunk is at most T/2 (|v| + 2 sum |a|) */\n"
+                 "                    const double t_B = 0.5 * k_T * (fabs(t_nv) + 2 * t_A);\n"
+                 "                    if (!(t_X + t_B <= -1e-10 * (fabs(t_X) + t_B))) {\n"
+                 "                        /* not through all of it: through the next frame? */\n"
+                 "                        double t_a1 = t_ka;\n%s"
+                 "                        const double t_X1 = t_X + 0.5 * k_T * (t_nv + t_a1);\n"
+                 "                        t_w = t_X1 <= -1e-10 * (fabs(t_X) + 0.5 * k_T * (fabs(t_nv) + fabs(t_a1))) ? 1u : 0u;\n"
+                 "                        t_S = t_E = t_a1;\n"
+                 "                    }\n"
+                 "                    s_ck%d = (int)t_w;\n"
+                 "                    s_cp%d = t_pos, s_cw%d = t_w, s_cS%d = t_S, s_cE%d = t_E;\n"
+                 "                }\n            }\n",
+             str(&w8), k, k, k, k, k);
+        x->ck_plan[k] = str(&p);
+        x->ck_end[k] = format("s_nX%d = flush((real)(%s + 0.5 * k_T * (%s + 2 * s_cS%d - s_cE%d)));\n"
+                              "s_nv%d = flush((real)s_cE%d);\n",
+                              k, dbl(x, format("s_nX%d", k)), dbl(x, format("s_nv%d", k)), k, k, k, k);
+        /* cut: the chunk's sum less that of the frames from t_q on */
+        Buf c = {0};
+        emit(&c, "            if (s_ck%d > 0) { /* %s: its travel up to t_q */\n%s"
+                 "                const unsigned t_r = s_cw%d - (t_q - s_cp%d);\n"
+                 "                double t_R = t_ka * t_r, t_E = t_ka, t_m;\n",
+             k, ce->name, str(&pre), k, k);
+        bool window = false;
+        for (int q = 0; q < np; q++) {
+            const Elem *e = &x->c->elems[port[q].elem];
+            const char *a = port_args(x, e);
+            window = true;
+            emit(&c, "                if (t_al%d != 0) {\n"
+                     "                    if (t_r > 0)\n"
+                     "                        t_R += t_al%d * %s;\n"
+                     "                    t_E += t_al%d * port_wave(%s, t_q - 1u, t_q - 1u);\n"
+                     "                }\n", q, q,
+                 x->wg_sum[e->wg] ? format("port_sum(%s, t_q, t_q - 1u, t_r, &t_m)", port_sargs(x, e))
+                                  : format("port_window(%s, t_q, t_q - 1u, t_r, &t_m)", a), q, a);
+        }
+        (void)window;
+        emit(&c, "                s_nX%d = (real)(%s + 0.5 * k_T * (%s + 2 * (s_cS%d - t_R) - t_E));\n"
+                 "                s_nv%d = (real)t_E;\n                s_ck%d = 0;\n            }\n",
+             k, dbl(x, format("s_nX%d", k)), dbl(x, format("s_nv%d", k)), k, k, k);
+        x->ck_cut[k] = str(&c);
+    }
+}
+
+/* The plans of the idle contacts not in a chunk, in process's text. */
+/* The texts t[k] of the idle contacts k, one after another. */
+static const char *idle_each(Ctx *x, const char **t) {
+    Buf b = {0};
+    for (int r = 0; r < x->w->nroots; r++)
+        if (x->idle[r])
+            emit(&b, "%s", t[x->nl_first[r]]);
+    return str(&b);
+}
+
+static const char *chunk_plans(Ctx *x) {
+    Buf b = {0};
+    if (x->anysum) { /* the running sums, anew after a contact touched a string */
+        emit(&b, "            if (!s_wPv) {\n");
+        for (int w = 0; w < x->c->nwgs; w++)
+            if (x->wg_sum[w])
+                for (int d = 0; d < 2; d++) {
+                    int off = x->wv_off[w] + d * x->wv_size[w];
+                    emit(&b, "                ring_sums(s_wv + %d, s_wP + %d, s_wA + %d, %du, t_pos, &s_wPr%d, &s_wAr%d);\n",
+                         off, off, off, x->wv_size[w] - 1, 2 * w + d, 2 * w + d);
+                }
+        emit(&b, "                s_wPv = 1;\n            }\n");
+    }
+    return format("%s%s", str(&b), idle_each(x, x->ck_plan));
+}
+
+/* The cuts of every idle contact's chunk at frame t_q. */
+static const char *chunk_cuts(Ctx *x) {
+    return format("%s%s", x->anysum ? "            s_wPv = 0; /* a contact touches a string: its sums are made anew */\n" : "",
+                  idle_each(x, x->ck_cut));
+}
+
+/* "s_nf0 == 0 && ...": every idle contact open (carried no force). */
+static const char *all_open(Ctx *x) {
+    Buf b = {0};
+    for (int r = 0; r < x->w->nroots; r++)
+        if (x->idle[r])
+            emit(&b, "%ss_nf%d == 0", b.len ? " && " : "", x->nl_first[r]);
+    return str(&b);
+}
+
 /* The sample loop while the contacts of idle roots stay open: their
  * trees' forward waves and their contacts' incident waves first; then the
  * test that leaves this sample to the full loop if a contact would not
@@ -1625,56 +1951,75 @@ static const char *deeper(const char *text, int levels) {
 static const char *idle_text(Ctx *x, Names *live) {
     Stmt *l = arena_alloc(sizeof(Stmt) * (size_t)(x->nstmt + 4 * x->nidle + 1));
     int n = 0;
+    /* an output may read a contact's incident wave: the trees' forward
+     * waves, computed only if one does */
     for (int i = 0; i < x->nstmt; i++) {
         const Stmt *s = &x->stmt[i];
-        if (s->own >= 0 && x->idle[s->own] && ((s->def && (s->phase == 'f' || s->phase == 'a')) || s->phase == 'p'))
+        if (s->own >= 0 && x->idle[s->own] && s->def && (s->phase == 'f' || s->phase == 'a'))
             l[n++] = *s;
     }
-    Buf decl = {0}, test = {0};
+    Buf wpre = {0}, until = {0}, stop = {0}, ends = {0};
     for (int b = 0; b < x->w->nroots; b++) {
         if (!x->idle[b])
             continue;
         int k = x->nl_first[b];
-        emit(&decl, "%s t_X%d = %s - c_nl%d_3", decl.len ? "," : "        const double", k,
-             dbl(x, format("s_nX%d", k)), k);
-        emit(&test, "%s(t_X%d > 0) | (t_X%d + 0.5 * k_T * %s > 0)", test.len ? " |\n            " : "", k, k,
-             dbl(x, format("(t_an%d + s_nv%d)", k, k)));
-    }
-    l[n++] = (Stmt){NULL, format("%s;\n        if (%s)\n            break; /* a contact meets: the full loop goes on */\n",
-                                 str(&decl), str(&test)), -1, 0};
-    for (int b = 0; b < x->w->nroots; b++) {
-        if (!x->idle[b])
-            continue;
-        int k = x->nl_first[b];
-        l[n++] = (Stmt){NULL, format("        s_nX%d += k_hT * (real)(%s + %s);\n        s_nv%d = t_an%d;\n", k,
-                                     dbl(x, format("t_an%d", k)), dbl(x, format("s_nv%d", k)), k, k), -1, 0};
         l[n++] = (Stmt){format("t_bn%d", k), format("        const real t_bn%d = (real)(2 * %s - %s);\n", k,
                                                    dbl(x, format("t_an%d", k)), dbl(x, format("t_an%d", k))), -1, 0};
         l[n++] = (Stmt){format("t_open%d", k), format("        const int t_open%d = 1;\n", k), -1, 0};
+        emit(&until, "%ss_ck%d == 0", until.len ? " || " : "", k);
+        emit(&stop, "%s                    if (s_ck%d < t_left)\n                        t_left = s_ck%d;\n",
+             stop.len ? "" : "                    t_left = 1 << 30;\n", k, k);
+        emit(&ends, "s_ck%d -= t_done;\nif (s_ck%d == 0) {\n%s}\n", k, k, deeper(x->ck_end[k], 1));
     }
     for (int i = 0; i < x->nstmt; i++) {
         const Stmt *s = &x->stmt[i];
-        if (!(s->own >= 0 && x->idle[s->own] && (!s->def || s->phase == 'f' || s->phase == 'a')))
+        if (s->phase != 'k' && !(s->own >= 0 && x->idle[s->own] && (!s->def || s->phase == 'f' || s->phase == 'a')))
             l[n++] = *s;
     }
+    /* leaving: the waves that last arrived at the trees' string ports */
+    for (int i = 0; i < x->w->nnodes; i++) {
+        const WNode *nd = x->w->nodes[i];
+        const Elem *e = &x->c->elems[nd->elem];
+        if (nd->kind == W_LEAF && x->idle[nd->root] && e->kind == E_S && x->sp_of[nd->elem] >= 0)
+            emit(&wpre, "                s_wpre%d = (real)port_wave(%s, t_pos - 1u, t_pos - 1u);\n", x->sp_of[nd->elem],
+                 port_args(x, e));
+    }
     Names lv = {0};
-    Buf body = {0};
-    emit(&body, "%s", deeper(live_text(l, n, &lv), 1));
+    const char *body = deeper(live_text(l, n, &lv), 2);
     /* entering: each mass's last incident wave is its held one, as after
      * a sample of the full loop with the contact open */
-    Buf open = {0}, hold = {0};
-    for (int b = 0; b < x->w->nroots; b++)
-        if (x->idle[b])
-            emit(&open, "%ss_nf%d == 0", open.len ? " && " : "", x->nl_first[b]);
+    Buf hold = {0};
     for (int i = 0; i < x->w->nnodes; i++) {
         const WNode *nd = x->w->nodes[i];
         if (nd->kind == W_LEAF && x->idle[nd->root] && x->react[i] >= 0)
             emit(&hold, "            s_b%d = %s;\n", x->react[i],
                  stamp(x, prims[x->c->elems[nd->elem].kind].reflect, (StampArgs){.a = format("s_a%d", x->react[i])}));
     }
-    const char *text = format("        if (%s) {\n            /* the contacts are open: the parts behind them wait */\n"
-                              "%s            for (; n < t_end; n++) {\n%s            }\n        }\n",
-                              str(&open), str(&hold), str(&body));
+    /* t_left: frames before the first chunk ends; t_done: frames since
+     * the chunks' counts (s_ck) were brought up to date; t_wait: the last
+     * frame was this loop's (the ports' last waves are still in the lines) */
+    const char *text = format("        if (t_left > 0 || (%s)) {\n"
+                              "            /* the contacts are open: the parts behind them wait,\n"
+                              "             * and their travel goes by chunks */\n"
+                              "            while (n < t_end) {\n"
+                              "                if (t_left == 0) {\n%s"
+                              "                    if (t_done > 0) { /* the chunks that ended */\n%s"
+                              "                        t_done = 0;\n                    }\n%s"
+                              "                    if (%s)\n"
+                              "                        break; /* a contact's travel is not known: the full loop steps it */\n%s"
+                              "                }\n"
+                              "                const int t_stop = t_end - n < t_left ? t_end : n + t_left;\n"
+                              "                t_left -= t_stop - n, t_done += t_stop - n;\n"
+                              "                for (; n < t_stop; n++) {\n%s                }\n"
+                              "                t_wait = 1;\n"
+                              "            }\n"
+                              "            if (n < t_end || n == nframes) { /* leaving for the full loop or the host */\n"
+                              "                if (t_done > 0) {\n%s                    t_done = 0;\n                }\n"
+                              "                if (t_wait) {\n%s                }\n"
+                              "            }\n"
+                              "        }\n",
+                              all_open(x), deeper(str(&hold), 2), deeper(str(&ends), 6), deeper(chunk_plans(x), 2),
+                              str(&until), str(&stop), body, deeper(str(&ends), 5), deeper(str(&wpre), 1));
     names_scan(live, text);
     return text;
 }
@@ -1743,6 +2088,19 @@ static void emit_hoist(Ctx *x) {
               format("        for (int m = %d; m < %d; m++) {\n            st->s_wf[m] = flush(st->s_wf[m]);\n"
                      "            st->s_wfp[m] = flush(st->s_wfp[m]);\n        }\n", f0 + nl, f0 + nl + c->wgs[w].M));
     }
+    if (x->anysum) {
+        local(x, "s_wP", "    double *const s_wP = st->s_wP;\n", NULL, NULL);
+        local(x, "s_wA", "    double *const s_wA = st->s_wA;\n", NULL, NULL);
+        local(x, "s_wPv", "    int s_wPv = st->s_wPv;\n", "    st->s_wPv = s_wPv;\n", NULL);
+        for (int w = 0; w < c->nwgs; w++)
+            for (int d = 0; x->wg_sum[w] && d < 2; d++) {
+                int j = 2 * w + d;
+                local(x, format("s_wPr%d", j), format("    double s_wPr%d = st->s_wPr[%d];\n", j, j),
+                      format("    st->s_wPr[%d] = s_wPr%d;\n", j, j), NULL);
+                local(x, format("s_wAr%d", j), format("    double s_wAr%d = st->s_wAr[%d];\n", j, j),
+                      format("    st->s_wAr[%d] = s_wAr%d;\n", j, j), NULL);
+            }
+    }
     for (int k = 0; k < x->nsp; k++)
         local(x, format("s_wpre%d", k), format("    real s_wpre%d = st->s_wpre[%d];\n", k, k),
               format("    st->s_wpre[%d] = s_wpre%d;\n", k, k), NULL);
@@ -1763,6 +2121,12 @@ static void emit_hoist(Ctx *x) {
             local(x, format("s_n%s%d", sn[j], k), format("    real s_n%s%d = st->s_n%s[%d];\n", sn[j], k, sn[j], k),
                   format("    st->s_n%s[%d] = s_n%s%d;\n", sn[j], k, sn[j], k),
                   format("        s_n%s%d = flush(s_n%s%d);\n", sn[j], k, sn[j], k));
+        if (idle_contact(x, k)) { /* its chunk */
+            static const char *cn[] = {"k", "p", "w", "S", "E"}, *ct[] = {"int", "unsigned", "unsigned", "double", "double"};
+            for (int j = 0; j < 5; j++)
+                local(x, format("s_c%s%d", cn[j], k), format("    %s s_c%s%d = st->s_c%s[%d];\n", ct[j], cn[j], k, cn[j], k),
+                      format("    st->s_c%s[%d] = s_c%s%d;\n", cn[j], k, cn[j], k), NULL);
+        }
         if (x->pwl_n[k]) {
             static const char *pn[] = {"a", "b", "s"};
             for (int j = 0; j < 3; j++)
@@ -1846,14 +2210,65 @@ static bool *kept_locals(Ctx *x, Names *live) {
     return keep;
 }
 
-static void print_locals(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl) {
+/* True if local `name` is a state of an idle root's tree or contact: it
+ * holds while the skipping loop runs (a chunk's end flushes the travel). */
+static bool idle_state(const Ctx *x, const char *name) {
+    if (!name || !x->nidle)
+        return false;
+    int k, r;
+    char c;
+    if (sscanf(name, "s_n%c%d", &c, &k) == 2 && (c == 'X' || c == 'v' || c == 'f'))
+        return idle_contact(x, k);
+    if (sscanf(name, "s_%c%d", &c, &r) == 2 && (c == 'a' || c == 'b'))
+        for (int i = 0; i < x->w->nnodes; i++)
+            if (x->react[i] == r)
+                return x->w->nodes[i]->kind == W_LEAF && x->idle[x->w->nodes[i]->root];
+    return false;
+}
+
+/* The kept locals' declarations, write-backs and flushes (those of idle
+ * states in *fli, if given). */
+static void print_locals_split(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl, Buf *fli) {
     bool *keep = kept_locals(x, live);
     for (int i = 0; i < x->nloc; i++)
         if (keep[i]) {
             emit(decl, "%s", x->loc[i].decl);
             emit(wb, "%s", x->loc[i].wb);
-            emit(fl, "%s", x->loc[i].fl);
+            emit(fli && idle_state(x, x->loc[i].name) ? fli : fl, "%s", x->loc[i].fl);
         }
+}
+
+static void print_locals(Ctx *x, Names *live, Buf *decl, Buf *wb, Buf *fl) {
+    print_locals_split(x, live, decl, wb, fl, NULL);
+}
+
+/* voice_cut, which param changes (update) and strikes (set_ic) call
+ * before they change the state: every idle contact's chunk ends before
+ * the next frame; "" for a voice without idle contacts. */
+static const char *chunk_fn(Ctx *x) {
+    if (!x->nidle)
+        return "";
+    Buf cuts = {0};
+    for (const char *p = chunk_cuts(x); *p;) { /* a level less deep */
+        const char *e = strchr(p, '\n');
+        size_t n = e ? (size_t)(e - p) + 1 : strlen(p);
+        size_t lead = n > 4 && !strncmp(p, "    ", 4) ? 4 : 0;
+        emit(&cuts, "%.*s", (int)(n - lead), p + lead);
+        p += n;
+    }
+    const char *body = format("    const unsigned t_q = t_pos;\n%s", str(&cuts));
+    Names live = {0};
+    names_scan(&live, body);
+    bool *keep = kept_locals(x, &live);
+    Buf decl = {0}, wb = {0};
+    for (int i = 0; i < x->nloc; i++)
+        if (keep[i] && x->loc[i].name) {
+            emit(&decl, "%s", x->loc[i].decl);
+            emit(&wb, "%s", x->loc[i].wb);
+        }
+    return format("/* Ends the chunk of every idle contact's travel before the next frame:\n"
+                  " * a param change or a strike changes what it summed. */\n"
+                  "static void voice_cut(state *st) {\n%s%s%s}\n\n", str(&decl), body, str(&wb));
 }
 
 /* ---- reset, initial conditions, energy ---- */
@@ -2638,6 +3053,16 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, r, "s_nv", x->nnl, "nonlinear edges: last voltage (velocity) across");
     field(&b, r, "s_nf", x->nnl,
           "contacts, nonlinear inductors: last current (force); capacitors: voltage of the charge");
+    field(&b, "double", "s_wP", x->anysum ? x->nwv : 0, "strings idle contacts read: running sums of each line");
+    field(&b, "double", "s_wA", x->anysum ? x->nwv : 0, "the same of the waves' sizes");
+    field(&b, "double", "s_wPr", x->anysum ? 2 * nw : 0, "the running sums at the last position written");
+    field(&b, "double", "s_wAr", x->anysum ? 2 * nw : 0, "the same of the sizes");
+    scalar(&b, x->anysum, "int s_wPv;", "the running sums hold (no contact touched a string since they were made)");
+    field(&b, "int", "s_ck", x->nidle ? x->nnl : 0, "idle contacts: frames left in the chunk of their travel");
+    field(&b, "unsigned", "s_cp", x->nidle ? x->nnl : 0, "idle contacts: the chunk's first frame (line position)");
+    field(&b, "unsigned", "s_cw", x->nidle ? x->nnl : 0, "idle contacts: the chunk's frames");
+    field(&b, "double", "s_cS", x->nidle ? x->nnl : 0, "idle contacts: the sum of the incident wave over the chunk");
+    field(&b, "double", "s_cE", x->nidle ? x->nnl : 0, "idle contacts: the incident wave at its last frame");
     field(&b, r, "c_pa", x->npwl, "piecewise-linear wave maps: a at the breakpoints");
     field(&b, r, "c_pb", x->npwl, "b at the breakpoints");
     field(&b, r, "c_ps", x->npwl, "slope db/da of each segment");
@@ -2910,6 +3335,71 @@ static const struct {
                    " * (t is 0): one test without branches in every lane and every frame, so\n"
                    " * that the loop over the lanes is vectorised whole */\n"
                    "static real flush_lane(real t, real x) { return fabs(x) < t ? (real)0 : x; }\n"},
+    {"port_window",
+     "/* The waves a string's port reads at frames p to p + w - 1 (at positions\n"
+     " * d behind the frame's): their sum, and the sum of their sizes in *mag.\n"
+     " * A position past `last` is not written yet: the end its line starts\n"
+     " * from will write there sg times the wave the other line brings it (od\n"
+     " * behind).  Summed in four lanes, always in the same order. */\n"
+     "static inline double port_window(const real *line, const real *other, unsigned m, unsigned d, unsigned od, double sg,\n"
+     "                          unsigned p, unsigned last, unsigned w, double *mag) {\n"
+     "    const unsigned q = p - d;\n"
+     "    unsigned known = (int)(last - q) < 0 ? 0u : last - q + 1u;\n"
+     "    if (known > w)\n        known = w;\n"
+     "    double s = 0, a = 0;\n"
+     "    for (int part = 0; part < 2; part++) {\n"
+     "        const real *src = part ? other : line;\n"
+     "        const double g = part ? sg : 1.0;\n"
+     "        unsigned i = part ? q + known - od : q, n = part ? w - known : known;\n"
+     "        while (n > 0) {\n"
+     "            const unsigned at = i & m, k = n < m + 1u - at ? n : m + 1u - at;\n"
+     "            const real *v = src + at, *const e = v + k;\n"
+     "            double s0 = 0, s1 = 0, s2 = 0, s3 = 0, a0 = 0, a1 = 0, a2 = 0, a3 = 0;\n"
+     "            for (; e - v >= 4; v += 4) {\n"
+     "                const double v0 = (double)v[0], v1 = (double)v[1], v2 = (double)v[2], v3 = (double)v[3];\n"
+     "                s0 += v0, s1 += v1, s2 += v2, s3 += v3;\n"
+     "                a0 += fabs(v0), a1 += fabs(v1), a2 += fabs(v2), a3 += fabs(v3);\n"
+     "            }\n"
+     "            for (; v < e; v++)\n"
+     "                s0 += (double)*v, a0 += fabs((double)*v);\n"
+     "            s += g * ((s0 + s1) + (s2 + s3));\n"
+     "            a += (a0 + a1) + (a2 + a3);\n"
+     "            i += k, n -= k;\n"
+     "        }\n"
+     "    }\n"
+     "    *mag = a;\n"
+     "    return s;\n"
+     "}\n"},
+    {"port_sum", "/* port_window's sums from a line's running sums of waves P and of sizes A\n"
+                 " * (and the other line's, PL and AL): eight reads. */\n"
+                 "static inline double port_sum(const double *P, const double *A, const double *PL, const double *AL, unsigned m,\n"
+                 "                              unsigned d, unsigned od, double sg, unsigned p, unsigned last, unsigned w,\n"
+                 "                              double *mag) {\n"
+                 "    const unsigned q = (p - d - 1u) & m, e = (p - d + w - 1u) & m;\n"
+                 "    if ((int)(last - (p - d + w - 1u)) >= 0) {\n"
+                 "        *mag = A[e] - A[q];\n        return P[e] - P[q];\n    }\n"
+                 "    /* the last position written, and the other line's positions that end reflects */\n"
+                 "    const unsigned f = ((int)(last - (p - d)) >= 0 ? last : p - d - 1u) & m, g = (f - od) & m, h = (e - od) & m;\n"
+                 "    *mag = A[f] - A[q] + (AL[h] - AL[g]);\n"
+                 "    return P[f] - P[q] + sg * (PL[h] - PL[g]);\n"
+                 "}\n"},
+    {"ring_sums", "/* The running sums of a line's waves and of their sizes, made anew from\n"
+                  " * its oldest position (pos) to its newest; *p and *a the last. */\n"
+                  "static void ring_sums(const real *line, double *P, double *A, unsigned m, unsigned pos, double *p, double *a) {\n"
+                  "    double s = 0, z = 0;\n"
+                  "    for (unsigned i = 0; i <= m; i++) {\n"
+                  "        const double v = (double)line[(pos + i) & m];\n"
+                  "        s += v, z += fabs(v);\n"
+                  "        P[(pos + i) & m] = s, A[(pos + i) & m] = z;\n"
+                  "    }\n"
+                  "    *p = s, *a = z;\n"
+                  "}\n"},
+    {"port_wave", "/* The wave a string's port reads at frame t (port_window's terms). */\n"
+                  "static inline double port_wave(const real *line, const real *other, unsigned m, unsigned d, unsigned od,\n"
+                  "                               double sg, unsigned t, unsigned last) {\n"
+                  "    const unsigned q = t - d;\n"
+                  "    return (int)(last - q) >= 0 ? (double)line[q & m] : sg * (double)other[(q - od) & m];\n"
+                  "}\n"},
     {"wrapfree", "/* line + q, for a loop that reads or writes position q of a line of `size`\n"
                  " * from frame n on; *se becomes the frame before which it stays on the line */\n"
                  "static real *wrapfree(real *line, unsigned q, unsigned size, int n, int *se) {\n"
@@ -2964,17 +3454,51 @@ static const char *helpers(const char *text, const char *wg, bool single) {
 /* The statements of the sample loop, in order. */
 static void emit_sample(Ctx *x) {
     x->own = -1, x->phase = 0;
+    if (x->nidle) { /* chunks start only where every idle contact is open */
+        chunk_texts(x);
+        x->phase = 'k';
+        if (x->skip)
+            put(x, NULL, "        t_full = 1, t_left = 0, t_wait = 0;\n");
+        put(x, NULL, "        if (%s) { /* the idle contacts are open */\n%s        }\n", all_open(x), chunk_plans(x));
+        x->phase = 0;
+    }
     for (int i = 0; i < x->c->ninputs; i++)
         put(x, format("t_in%d", i), "        const real t_in%d = (real)in%d[n];\n", i, i);
     emit_forward(x);
     for (int b = 0; b < x->w->nroots; b++)
         emit_root(x, b);
+    if (x->nidle) {
+        Buf o = {0};
+        for (int b = 0; b < x->w->nroots; b++)
+            if (x->idle[b])
+                emit(&o, "%st_open%d", o.len ? " && " : "", x->nl_first[b]);
+        x->own = -1, x->phase = 'k';
+        put(x, NULL, "        if (!(%s)) { /* a contact meets: every chunk ends with this frame */\n"
+                     "            const unsigned t_q = t_pos + 1u;\n%s        }\n", str(&o), chunk_cuts(x));
+    }
     emit_backward(x);
     x->own = -1, x->phase = 0;
     emit_outputs(x);
     emit_work(x);
+    for (int w = 0; x->anysum && w < x->c->nwgs; w++)
+        for (int d = 0; x->wg_sum[w] && d < 2; d++) {
+            int off = x->wv_off[w] + d * x->wv_size[w], m = x->wv_size[w] - 1;
+            put(x, NULL, "        { /* %s: the running sums of its %s line */\n"
+                         "            const double t_w = (double)s_wv[%d + (t_pos & %du)];\n"
+                         "            s_wPr%d += t_w, s_wAr%d += fabs(t_w);\n"
+                         "            s_wP[%d + (t_pos & %du)] = s_wPr%d, s_wA[%d + (t_pos & %du)] = s_wAr%d;\n"
+                         "        }\n", x->c->wgs[w].name, d ? "left-going" : "right-going", off, m,
+                2 * w + d, 2 * w + d, off, m, 2 * w + d, off, m, 2 * w + d);
+        }
     if (x->nline || x->c->nwgs)
         put(x, NULL, "        t_pos++;\n");
+    x->phase = 'k';
+    for (int b = 0; b < x->w->nroots; b++)
+        if (x->idle[b]) {
+            int k = x->nl_first[b];
+            put(x, NULL, "        if (s_ck%d > 0 && --s_ck%d == 0) {\n%s        }\n", k, k, deeper(x->ck_end[k], 3));
+        }
+    x->phase = 0;
 }
 
 /* A parameter list with the parameters that none of the texts `parts`
@@ -3038,6 +3562,10 @@ static const char *clears(Ctx *x) {
     for (int k = 0; k < (int)(sizeof arr / sizeof arr[0]); k++)
         if (arr[k])
             emit(&b, "    memset(st->%s, 0, sizeof st->%s);\n", arr[k], arr[k]);
+    if (x->nidle)
+        emit(&b, "    memset(st->s_ck, 0, sizeof st->s_ck);\n");
+    if (x->anysum)
+        emit(&b, "    st->s_wPv = 0;\n");
     if (x->nline || x->c->nwgs)
         emit(&b, "    st->s_pos = 0;\n");
     if (x->flushes)
@@ -3077,7 +3605,7 @@ static const char *update_holes(Ctx *x, Holes *t, const char *body) {
     if (c->nparams) /* the params changed since the last call, taken */
         emit(&head, "%s    st->dirty = 0;\n", ud ? "    const unsigned long long d = st->dirty;\n" : "");
     set(t, "update_args", format("state *st%s", uf ? ", int full" : ""));
-    set(t, "update", format("%s%s", str(&head), body));
+    set(t, "update", format("%s%s%s", x->nidle ? "    voice_cut(st);\n" : "", str(&head), body));
     set(t, "init", format("%s    update(st%s);\n",
                           c->nparams ? "    for (int i = 0; i < N_PARAMS; i++)\n        st->p[i] = param_desc[i].def;\n"
                                      : "",
@@ -3962,12 +4490,18 @@ static bool segment_lines(const char **texts, int n, Buf *open, Buf *decl) {
 static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     Names live = {0};
     const char *sample = sample_text(x, &live);
-    const char *idle = x->nidle ? idle_text(x, &live) : "";
+    const char *idle = x->skip ? idle_text(x, &live) : "";
     Buf decl = {0}, wb = {0}, fl = {0}, open = {0}, seg = {0};
     const char *loops[] = {sample, idle};
     bool segs = segment_lines(loops, 2, &open, &seg);
     sample = loops[0], idle = loops[1];
-    print_locals(x, &live, &decl, &wb, &fl);
+    Buf fli = {0};
+    print_locals_split(x, &live, &decl, &wb, &fl, x->skip ? &fli : NULL);
+    if (x->skip) { /* a run the skipping loop took whole leaves the idle states as they were: flushed */
+        emit(&decl, "    int t_full = 1; /* the full loop ran since the last flush */\n"
+                    "    int t_left = 0, t_done = 0, t_wait = 0; /* the skipping loop's: see idle_text */\n");
+        emit(&fl, "        if (t_full) {\n%s        }\n        t_full = 0;\n", deeper(str(&fli), 1));
+    }
     emit(&decl, "%s", str(&seg));
     /* runs of FLUSH_RUN samples are counted across calls (s_run), so the
      * states are flushed at the same samples however a host splits its
@@ -3994,6 +4528,7 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     set(t, "run_count", x->flushes ? "        t_run += (unsigned)(t_end - n);\n" : "");
     set(t, "writeback", str(&wb));
     set(t, "batch", x->opt->batch ? batch_text(x, dirty) : "");
+    set(t, "chunks", chunk_fn(x));
     set(t, "batch_entry", x->opt->batch ? "voice_process_batch" : "NULL");
     set(t, "solve_stats", any_joint(x) ? "static void voice_solve_stats(const void *vst, unsigned long stats[WDV_SOLVE_N]) {\n"
                                          "    for (int k = 0; k < WDV_SOLVE_N; k++)\n"
@@ -4019,7 +4554,7 @@ static void reset_holes(Ctx *x, Holes *t, const char *dirty, const char *rest, c
     if (*cases && x->ic_direct)
         sw = "    for (int k = 0; k < n; k++)\n        react[ids[k]] = values[k];\n";
     const char *res = x->settle ? format("settle(st, %s) == 0 ? 0 : -1", x->nreact ? "react" : "NULL") : "0";
-    const char *head = format("%s%s%s", react, dirty, kirch);
+    const char *head = format("%s%s%s%s", react, x->nidle ? "    voice_cut(st);\n" : "", dirty, kirch);
     const char *parts[] = {head, sw, res};
     bool used = uses_any(parts, 3, "st");
     set(t, "set_ic_args", format("void *vst%s, int n, const int *ids%s, const double *values%s", used ? "" : " UNUSED",
@@ -4246,7 +4781,7 @@ int emit_voice(const Wdf *w, const EmitOpts *opt) {
         Names live = {0};
         Buf d = {0}, wb = {0}, fl = {0};
         sample_text(&x, &live);
-        if (x.nidle)
+        if (x.skip)
             idle_text(&x, &live);
         print_locals(&x, &live, &d, &wb, &fl);
         root_fns(&x, &live);
