@@ -4429,7 +4429,7 @@ static size_t line_access(const char *p, LinePos *lp) {
 /* texts[0..n) with each line access turned into its segment pointer's;
  * *open gets the statements that start a segment, *decl the pointers'
  * declarations.  False (texts untouched) if they have none. */
-static bool segment_lines(const char **texts, int n, Buf *open, Buf *decl) {
+static bool segment_lines(const char **texts, int n, int nadd, Buf *open, Buf *decl) {
     LinePos *pos = NULL;
     int npos = 0, cap = 0, nslot = 0, *slot = NULL; /* slot: open addressing over pos by text */
     for (int t = 0; t < n; t++) {
@@ -4446,6 +4446,21 @@ static bool segment_lines(const char **texts, int n, Buf *open, Buf *decl) {
             if (!len) {
                 buf_put(&b, s, 2);
                 p = s + 2;
+                continue;
+            }
+            if (t >= nadd) { /* a text that only takes the positions the first ones hold */
+                int k = -1;
+                if (nslot) {
+                    unsigned h = name_hash(lp.text, strlen(lp.text)) & (unsigned)(nslot - 1);
+                    while (slot[h] >= 0 && strcmp(pos[slot[h]].text, lp.text))
+                        h = (h + 1) & (unsigned)(nslot - 1);
+                    k = slot[h];
+                }
+                if (k >= 0)
+                    emit(&b, "t_l%d[n - t_s0]", k);
+                else
+                    buf_put(&b, s, len);
+                p = s + len;
                 continue;
             }
             if (2 * (npos + 1) > nslot) { /* grow the table, rehash */
@@ -4492,9 +4507,13 @@ static void process_holes(Ctx *x, Holes *t, const char *dirty) {
     const char *sample = sample_text(x, &live);
     const char *idle = x->skip ? idle_text(x, &live) : "";
     Buf decl = {0}, wb = {0}, fl = {0}, open = {0}, seg = {0};
-    const char *loops[] = {sample, idle};
-    bool segs = segment_lines(loops, 2, &open, &seg);
-    sample = loops[0], idle = loops[1];
+    /* with hammers that skip, the segments hold the positions the
+     * skipping loop reads and writes (the full loop masks the others: the
+     * idle contacts' ports), so that positions it does not read do not
+     * cut its runs short */
+    const char *loops[] = {idle, sample};
+    bool segs = segment_lines(loops, 2, x->skip ? 1 : 2, &open, &seg);
+    idle = loops[0], sample = loops[1];
     Buf fli = {0};
     print_locals_split(x, &live, &decl, &wb, &fl, x->skip ? &fli : NULL);
     if (x->skip) { /* a run the skipping loop took whole leaves the idle states as they were: flushed */
