@@ -1913,8 +1913,14 @@ static const char *idle_each(Ctx *x, const char **t) {
 
 static const char *chunk_plans(Ctx *x) {
     Buf b = {0};
-    if (x->anysum) { /* the running sums, anew after a contact touched a string */
-        emit(&b, "            if (!s_wPv) {\n");
+    if (x->anysum) { /* the running sums, anew after a contact touched a string, and every 2^22 frames
+                      * (a sum of sizes that grew without end would lose the small ones) */
+        Buf any = {0}; /* where a contact plans: the same frames skipping or not */
+        for (int r = 0; r < x->w->nroots; r++)
+            if (x->idle[r])
+                emit(&any, "%ss_ck%d == 0", any.len ? " || " : "", x->nl_first[r]);
+        emit(&b, "            if ((%s) && (!s_wPv || t_pos - s_wPt > 1u << 22)) {\n                s_wPt = t_pos;\n",
+             str(&any));
         for (int w = 0; w < x->c->nwgs; w++)
             if (x->wg_sum[w])
                 for (int d = 0; d < 2; d++) {
@@ -2092,6 +2098,7 @@ static void emit_hoist(Ctx *x) {
         local(x, "s_wP", "    double *const s_wP = st->s_wP;\n", NULL, NULL);
         local(x, "s_wA", "    double *const s_wA = st->s_wA;\n", NULL, NULL);
         local(x, "s_wPv", "    int s_wPv = st->s_wPv;\n", "    st->s_wPv = s_wPv;\n", NULL);
+        local(x, "s_wPt", "    unsigned s_wPt = st->s_wPt;\n", "    st->s_wPt = s_wPt;\n", NULL);
         for (int w = 0; w < c->nwgs; w++)
             for (int d = 0; x->wg_sum[w] && d < 2; d++) {
                 int j = 2 * w + d;
@@ -3058,6 +3065,7 @@ static const char *state_fields(Ctx *x, int nd) {
     field(&b, "double", "s_wPr", x->anysum ? 2 * nw : 0, "the running sums at the last position written");
     field(&b, "double", "s_wAr", x->anysum ? 2 * nw : 0, "the same of the sizes");
     scalar(&b, x->anysum, "int s_wPv;", "the running sums hold (no contact touched a string since they were made)");
+    scalar(&b, x->anysum, "unsigned s_wPt;", "the line position where they were made");
     field(&b, "int", "s_ck", x->nidle ? x->nnl : 0, "idle contacts: frames left in the chunk of their travel");
     field(&b, "unsigned", "s_cp", x->nidle ? x->nnl : 0, "idle contacts: the chunk's first frame (line position)");
     field(&b, "unsigned", "s_cw", x->nidle ? x->nnl : 0, "idle contacts: the chunk's frames");
