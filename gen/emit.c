@@ -1812,7 +1812,6 @@ static void chunk_texts(Ctx *x) {
             }
         }
         Buf w8 = {0}, pre = {0};
-        bool pwin = false;
         emit(&pre, "                const double t_ka = 0.0%s;\n", str(&kap));
         for (int q = 0; q < np; q++)
             emit(&pre, "                const double t_al%d = %s;\n", q, port[q].alpha);
@@ -1854,9 +1853,7 @@ static void chunk_texts(Ctx *x) {
                          "                        t_E += t_al%d * port_wave(%s, t_pos + t_w - 1u, t_pos - 1u);\n"
                          "                    }\n", q, q, a, q, q, a);
             emit(&w8, "                        t_a1 += t_al%d * port_wave(%s, t_pos, t_pos - 1u);\n", q, a);
-            pwin = true;
         }
-        (void)pwin;
         emit(&p, "                    /* the travel through the chunk is at most T/2 (|v| + 2 sum |a|) */\n"
                  "                    const double t_B = 0.5 * k_T * (fabs(t_nv) + 2 * t_A);\n"
                  "                    if (!(t_X + t_B <= -1e-10 * (fabs(t_X) + t_B))) {\n"
@@ -1880,11 +1877,9 @@ static void chunk_texts(Ctx *x) {
                  "                const unsigned t_r = s_cw%d - (t_q - s_cp%d);\n"
                  "                double t_R = t_ka * t_r, t_E = t_ka, t_m;\n",
              k, ce->name, str(&pre), k, k);
-        bool window = false;
         for (int q = 0; q < np; q++) {
             const Elem *e = &x->c->elems[port[q].elem];
             const char *a = port_args(x, e);
-            window = true;
             emit(&c, "                if (t_al%d != 0) {\n"
                      "                    if (t_r > 0)\n"
                      "                        t_R += t_al%d * %s;\n"
@@ -1893,7 +1888,6 @@ static void chunk_texts(Ctx *x) {
                  x->wg_sum[e->wg] ? format("port_sum(%s, t_q, t_q - 1u, t_r, &t_m)", port_sargs(x, e))
                                   : format("port_window(%s, t_q, t_q - 1u, t_r, &t_m)", a), q, a);
         }
-        (void)window;
         emit(&c, "                s_nX%d = (real)(%s + 0.5 * k_T * (%s + 2 * (s_cS%d - t_R) - t_E));\n"
                  "                s_nv%d = (real)t_E;\n                s_ck%d = 0;\n            }\n",
              k, dbl(x, format("s_nX%d", k)), dbl(x, format("s_nv%d", k)), k, k, k);
