@@ -1738,26 +1738,29 @@ static const char *port_reach(Ctx *x, const Elem *e) {
     return str(&b);
 }
 
-/* The arguments of port_window and port_wave for port e before the
- * frame: its line, the other line, the mask, its delay, the other's
- * delay to end a and end a's reflection. */
-static const char *port_args(Ctx *x, const Elem *e) {
+/* The arguments, after the lines, of port_window, port_wave and port_sum
+ * for port e: the mask, its delay, the other line's delay to end a and
+ * end a's reflection (none from end b, whose waves pass the filters). */
+static const char *port_geom(Ctx *x, const Elem *e) {
     const Waveguide *g = &x->c->wgs[e->wg];
-    int w = e->wg, T = x->wt_off[w] + e->pt - 1, R = x->wv_off[w], L = R + x->wv_size[w], m = x->wv_size[w] - 1;
+    int w = e->wg, T = x->wt_off[w] + e->pt - 1, m = x->wv_size[w] - 1;
     if (e->side == 0)
-        return format("s_wv + %d, s_wv + %d, %du, k_wk%d, k_wNL%d, %s", R, L, m, T, w,
-                      g->end[0] ? "0.0" : g->term[0] == 'c' ? "1.0" : "-1.0");
-    return format("s_wv + %d, s_wv + %d, %du, k_wNL%d - k_wk%d, 0u, 0.0", L, L, m, w, T);
+        return format("%du, k_wk%d, k_wNL%d, %s", m, T, w, g->end[0] ? "0.0" : g->term[0] == 'c' ? "1.0" : "-1.0");
+    return format("%du, k_wNL%d - k_wk%d, 0u, 0.0", m, w, T);
 }
 
-/* port_sum's arguments for port e's sums. */
+/* port_window's and port_wave's arguments for port e before the frame:
+ * its line, the other line, port_geom. */
+static const char *port_args(Ctx *x, const Elem *e) {
+    int R = x->wv_off[e->wg], L = R + x->wv_size[e->wg], own = e->side ? L : R;
+    return format("s_wv + %d, s_wv + %d, %s", own, L, port_geom(x, e));
+}
+
+/* port_sum's: the running sums of the waves and sizes of its line and the
+ * other's, port_geom. */
 static const char *port_sargs(Ctx *x, const Elem *e) {
-    const Waveguide *g = &x->c->wgs[e->wg];
-    int w = e->wg, T = x->wt_off[w] + e->pt - 1, R = x->wv_off[w], L = R + x->wv_size[w], m = x->wv_size[w] - 1;
-    if (e->side == 0)
-        return format("s_wP + %d, s_wA + %d, s_wP + %d, s_wA + %d, %du, k_wk%d, k_wNL%d, %s", R, R, L, L, m, T, w,
-                      g->end[0] ? "0.0" : g->term[0] == 'c' ? "1.0" : "-1.0");
-    return format("s_wP + %d, s_wA + %d, s_wP + %d, s_wA + %d, %du, k_wNL%d - k_wk%d, 0u, 0.0", L, L, L, L, m, w, T);
+    int R = x->wv_off[e->wg], L = R + x->wv_size[e->wg], own = e->side ? L : R;
+    return format("s_wP + %d, s_wA + %d, s_wP + %d, s_wA + %d, %s", own, own, L, L, port_geom(x, e));
 }
 
 /* Marks the strings whose lines keep running sums (wg_sum). */
@@ -1864,9 +1867,9 @@ static void chunk_texts(Ctx *x) {
                  "                        t_S = t_E = t_a1;\n"
                  "                    }\n"
                  "                    s_ck%d = (int)t_w;\n"
-                 "                    s_cp%d = t_pos, s_cw%d = t_w, s_cS%d = t_S, s_cE%d = t_E;\n"
+                 "                    s_ce%d = t_pos + t_w, s_cS%d = t_S, s_cE%d = t_E;\n"
                  "                }\n            }\n",
-             str(&w8), k, k, k, k, k);
+             str(&w8), k, k, k, k);
         x->ck_plan[k] = str(&p);
         x->ck_end[k] = format("s_nX%d = flush((real)(%s + 0.5 * k_T * (%s + 2 * s_cS%d - s_cE%d)));\n"
                               "s_nv%d = flush((real)s_cE%d);\n",
@@ -1874,9 +1877,9 @@ static void chunk_texts(Ctx *x) {
         /* cut: the chunk's sum less that of the frames from t_q on */
         Buf c = {0};
         emit(&c, "            if (s_ck%d > 0) { /* %s: its travel up to t_q */\n%s"
-                 "                const unsigned t_r = s_cw%d - (t_q - s_cp%d);\n"
+                 "                const unsigned t_r = s_ce%d - t_q;\n"
                  "                double t_R = t_ka * t_r, t_E = t_ka, t_m;\n",
-             k, ce->name, str(&pre), k, k);
+             k, ce->name, str(&pre), k);
         for (int q = 0; q < np; q++) {
             const Elem *e = &x->c->elems[port[q].elem];
             const char *a = port_args(x, e);
@@ -1895,7 +1898,6 @@ static void chunk_texts(Ctx *x) {
     }
 }
 
-/* The plans of the idle contacts not in a chunk, in process's text. */
 /* The texts t[k] of the idle contacts k, one after another. */
 static const char *idle_each(Ctx *x, const char **t) {
     Buf b = {0};
@@ -1905,16 +1907,23 @@ static const char *idle_each(Ctx *x, const char **t) {
     return str(&b);
 }
 
+/* fmt (naming a contact's index once) for each idle contact, joined by sep. */
+static const char *idle_join(Ctx *x, const char *fmt, const char *sep) {
+    Buf b = {0};
+    for (int r = 0; r < x->w->nroots; r++)
+        if (x->idle[r])
+            emit(&b, "%s%s", b.len ? sep : "", format(fmt, x->nl_first[r]));
+    return str(&b);
+}
+
+/* The plans of the idle contacts not in a chunk, in process's text. */
 static const char *chunk_plans(Ctx *x) {
     Buf b = {0};
     if (x->anysum) { /* the running sums, anew after a contact touched a string, and every 2^22 frames
                       * (a sum of sizes that grew without end would lose the small ones) */
-        Buf any = {0}; /* where a contact plans: the same frames skipping or not */
-        for (int r = 0; r < x->w->nroots; r++)
-            if (x->idle[r])
-                emit(&any, "%ss_ck%d == 0", any.len ? " || " : "", x->nl_first[r]);
+        /* where a contact plans: the same frames skipping or not */
         emit(&b, "            if ((%s) && (!s_wPv || t_pos - s_wPt > 1u << 22)) {\n                s_wPt = t_pos;\n",
-             str(&any));
+             idle_join(x, "s_ck%d == 0", " || "));
         for (int w = 0; w < x->c->nwgs; w++)
             if (x->wg_sum[w])
                 for (int d = 0; d < 2; d++) {
@@ -1934,13 +1943,7 @@ static const char *chunk_cuts(Ctx *x) {
 }
 
 /* "s_nf0 == 0 && ...": every idle contact open (carried no force). */
-static const char *all_open(Ctx *x) {
-    Buf b = {0};
-    for (int r = 0; r < x->w->nroots; r++)
-        if (x->idle[r])
-            emit(&b, "%ss_nf%d == 0", b.len ? " && " : "", x->nl_first[r]);
-    return str(&b);
-}
+static const char *all_open(Ctx *x) { return idle_join(x, "s_nf%d == 0", " && "); }
 
 /* The sample loop while the contacts of idle roots stay open: their
  * trees' forward waves and their contacts' incident waves first; then the
@@ -1958,7 +1961,7 @@ static const char *idle_text(Ctx *x, Names *live) {
         if (s->own >= 0 && x->idle[s->own] && s->def && (s->phase == 'f' || s->phase == 'a'))
             l[n++] = *s;
     }
-    Buf wpre = {0}, until = {0}, stop = {0}, ends = {0};
+    Buf wpre = {0}, stop = {0}, ends = {0};
     for (int b = 0; b < x->w->nroots; b++) {
         if (!x->idle[b])
             continue;
@@ -1966,7 +1969,6 @@ static const char *idle_text(Ctx *x, Names *live) {
         l[n++] = (Stmt){format("t_bn%d", k), format("        const real t_bn%d = (real)(2 * %s - %s);\n", k,
                                                    dbl(x, format("t_an%d", k)), dbl(x, format("t_an%d", k))), -1, 0};
         l[n++] = (Stmt){format("t_open%d", k), format("        const int t_open%d = 1;\n", k), -1, 0};
-        emit(&until, "%ss_ck%d == 0", until.len ? " || " : "", k);
         emit(&stop, "%s                    if (s_ck%d < t_left)\n                        t_left = s_ck%d;\n",
              stop.len ? "" : "                    t_left = 1 << 30;\n", k, k);
         emit(&ends, "s_ck%d -= t_done;\nif (s_ck%d == 0) {\n%s}\n", k, k, deeper(x->ck_end[k], 1));
@@ -2019,7 +2021,7 @@ static const char *idle_text(Ctx *x, Names *live) {
                               "            }\n"
                               "        }\n",
                               all_open(x), deeper(str(&hold), 2), deeper(str(&ends), 6), deeper(chunk_plans(x), 2),
-                              str(&until), str(&stop), body, deeper(str(&ends), 5), deeper(str(&wpre), 1));
+                              idle_join(x, "s_ck%d == 0", " || "), str(&stop), body, deeper(str(&ends), 5), deeper(str(&wpre), 1));
     names_scan(live, text);
     return text;
 }
@@ -2123,8 +2125,8 @@ static void emit_hoist(Ctx *x) {
                   format("    st->s_n%s[%d] = s_n%s%d;\n", sn[j], k, sn[j], k),
                   format("        s_n%s%d = flush(s_n%s%d);\n", sn[j], k, sn[j], k));
         if (idle_contact(x, k)) { /* its chunk */
-            static const char *cn[] = {"k", "p", "w", "S", "E"}, *ct[] = {"int", "unsigned", "unsigned", "double", "double"};
-            for (int j = 0; j < 5; j++)
+            static const char *cn[] = {"k", "e", "S", "E"}, *ct[] = {"int", "unsigned", "double", "double"};
+            for (int j = 0; j < 4; j++)
                 local(x, format("s_c%s%d", cn[j], k), format("    %s s_c%s%d = st->s_c%s[%d];\n", ct[j], cn[j], k, cn[j], k),
                       format("    st->s_c%s[%d] = s_c%s%d;\n", cn[j], k, cn[j], k), NULL);
         }
@@ -3061,8 +3063,7 @@ static const char *state_fields(Ctx *x, int nd) {
     scalar(&b, x->anysum, "int s_wPv;", "the running sums hold (no contact touched a string since they were made)");
     scalar(&b, x->anysum, "unsigned s_wPt;", "the line position where they were made");
     field(&b, "int", "s_ck", x->nidle ? x->nnl : 0, "idle contacts: frames left in the chunk of their travel");
-    field(&b, "unsigned", "s_cp", x->nidle ? x->nnl : 0, "idle contacts: the chunk's first frame (line position)");
-    field(&b, "unsigned", "s_cw", x->nidle ? x->nnl : 0, "idle contacts: the chunk's frames");
+    field(&b, "unsigned", "s_ce", x->nidle ? x->nnl : 0, "idle contacts: the line position the chunk ends before");
     field(&b, "double", "s_cS", x->nidle ? x->nnl : 0, "idle contacts: the sum of the incident wave over the chunk");
     field(&b, "double", "s_cE", x->nidle ? x->nnl : 0, "idle contacts: the incident wave at its last frame");
     field(&b, r, "c_pa", x->npwl, "piecewise-linear wave maps: a at the breakpoints");
@@ -3470,13 +3471,10 @@ static void emit_sample(Ctx *x) {
     for (int b = 0; b < x->w->nroots; b++)
         emit_root(x, b);
     if (x->nidle) {
-        Buf o = {0};
-        for (int b = 0; b < x->w->nroots; b++)
-            if (x->idle[b])
-                emit(&o, "%st_open%d", o.len ? " && " : "", x->nl_first[b]);
         x->own = -1, x->phase = 'k';
         put(x, NULL, "        if (!(%s)) { /* a contact meets: every chunk ends with this frame */\n"
-                     "            const unsigned t_q = t_pos + 1u;\n%s        }\n", str(&o), chunk_cuts(x));
+                     "            const unsigned t_q = t_pos + 1u;\n%s        }\n", idle_join(x, "t_open%d", " && "),
+            chunk_cuts(x));
     }
     emit_backward(x);
     x->own = -1, x->phase = 0;
